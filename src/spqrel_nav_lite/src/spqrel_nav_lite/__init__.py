@@ -1,0 +1,1 @@
+"""spqrel_nav_lite: map server, localisation and navigation nodes behind move_base."""

@@ -1,0 +1,133 @@
+"""Patrol graph loader: shipped graphs, coordinates, round trip, malformed input."""
+import os
+
+import pytest
+
+from patrolling_sim import paths
+from patrolling_sim.errors import GraphFormatError
+from patrolling_sim.graph import (PatrolGraph, format_graph, graph_warnings, graphs_equal,
+                                  load_graph, parse_graph, printed_edge_count,
+                                  undirected_edge_count)
+from patrolling_sim.mapio import load_map
+
+# patrolling_sim_facts.md section 4: V, E (distinct pairs), E* (as the original prints)
+SHIPPED = {
+    "grid": (25, 40, 40), "example": (29, 34, 36), "cumberland": (40, 44, 44),
+    "1r5": (12, 11, 11), "broughton": (163, 186, 186), "DIAG_labs": (27, 26, 26),
+    "DIAG_floor1": (60, 63, 63), "ctcv": (18, 17, 17), "move_base_arena": (14, 22, 22),
+}
+
+
+def test_all_shipped_maps_present():
+    assert sorted(paths.available_maps()) == sorted(SHIPPED)
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_shipped_graph_counts(name):
+    yaml_path, graph_path = paths.map_files(name)
+    G = load_graph(graph_path)
+    V, E, Estar = SHIPPED[name]
+    assert G.number_of_nodes() == V
+    assert undirected_edge_count(G) == E
+    assert printed_edge_count(G) == Estar
+    occ = load_map(yaml_path)
+    # header matches the image, and after the data fixes no graph has warnings
+    assert (G.graph["width_px"], G.graph["height_px"]) == (occ.width, occ.height)
+    assert graph_warnings(G, occ) == []
+
+
+def test_grid_coordinates():
+    G = load_graph(paths.map_files("grid")[1])
+    assert G.nodes[0]["pos"] == pytest.approx((1.425, 24.375))
+    assert G.nodes[1]["pos"] == pytest.approx((1.425, 18.675))
+    assert G.nodes[0]["x_px"] == 19 and G.nodes[0]["y_px"] == 325
+    e = G.get_edge_data(0, 1)[0]
+    assert e["cost_px"] == 76 and e["cost_m"] == pytest.approx(5.7) and e["direction"] == "S"
+
+
+def test_ctcv_offsets_and_multi_edges_kept():
+    G = load_graph(paths.map_files("ctcv")[1])
+    assert G.graph["offset_x"] == pytest.approx(-29.675)
+    ex = load_graph(paths.map_files("example")[1])
+    assert len(ex.get_edge_data(14, 16)) == 2      # listed twice, both kept
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_round_trip(name, tmp_path):
+    G = load_graph(paths.map_files(name)[1])
+    text = format_graph(G)
+    G2 = parse_graph(text, "x.graph")
+    assert graphs_equal(G, G2)
+    assert format_graph(G2) == text
+    out = tmp_path / "rt.graph"
+    out.write_text(text)
+    assert graphs_equal(G, load_graph(str(out)))
+
+
+def test_patrol_graph_tables():
+    pg = PatrolGraph(load_graph(paths.map_files("grid")[1]))
+    assert pg.n == 25
+    assert pg.dist[0, 24] == 8 * 76          # opposite corners of the 5x5 lattice
+    p = pg.path(0, 24)
+    assert p[0] == 0 and p[-1] == 24 and len(p) == 9
+    assert all(pg.arc_cost(a, b) == 76 for a, b in zip(p, p[1:]))
+    assert pg.hops[0, 24] == 8
+    assert pg.nearest_vertex(1.5, 24.0) == 0
+
+
+GOOD = "3 10 10 0.5 0 0\n0 1 1 1 1 E 2\n1 3 1 2 0 W 2 2 N 2\n2 3 3 1 1 S 2\n"
+
+
+def _err(text, tmp_path):
+    p = tmp_path / "bad.graph"
+    p.write_text(text)
+    with pytest.raises(GraphFormatError) as ei:
+        load_graph(str(p))
+    msg = str(ei.value)
+    assert "\n" not in msg and str(p) in msg
+    return msg
+
+
+def test_good_small_graph_parses():
+    G = parse_graph(GOOD, "good.graph")
+    assert G.number_of_nodes() == 3 and G.nodes[2]["pos"] == (1.5, 1.5)
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("", "truncated"),                                                   # empty
+    ("3 10 10 0.5 0 0\n0 1 1 1 1 E 2\n1 3 1 2 0 W 2", "truncated"),      # cut mid-record
+    ("3 10 10 abc 0 0\n", "resolution (m/px) must be a number, got 'abc'"),
+    ("3 10 10 0.5 0 0\n0 1 1 1 1 E x2\n", "must be an integer, got 'x2'"),
+    ("x 10 10 0.5 0 0\n", "vertex count must be an integer"),
+    ("0 10 10 0.5 0 0\n", "vertex count must be >= 1"),
+    ("3 10 10 0.5 0 0\n0 1 1 1 7 E 2\n", "neighbour id 7 of vertex 0 is out of range"),
+    ("3 10 10 0.5 0 0\n0 1 1 1 1 Q 2\n", "direction of edge 0->1"),
+    ("3 10 10 0.5 0 0\n0 1 1 1 1 E -2\n", "must be >= 0"),
+    ("3 10 10 0.5 0 0\n1 1 1 0\n", "vertex record 0 has id 1"),
+    ("2 10 10 0.5 0 0\n0 1 1 1 1 E 2\n1 3 1 1 0 W 2\n2 3 3 0\n", "unexpected data '2'"),
+    ("3 10 10 -0.5 0 0\n", "positive"),
+    ("3 10 10 0.5 0 0\n0 1 1 1 0 E 2\n", "lists itself"),
+])
+def test_malformed_graphs(text, needle, tmp_path):
+    assert needle in _err(text, tmp_path)
+
+
+def test_error_names_line(tmp_path):
+    msg = _err("3 10 10 0.5 0 0\n0 1 1 1 1 E 2\n1 3 1 2 0 W 2 9 N 2\n", tmp_path)
+    assert "bad.graph:3:" in msg
+
+
+def test_missing_graph_file(tmp_path):
+    with pytest.raises(GraphFormatError, match="not found"):
+        load_graph(str(tmp_path / "nope.graph"))
+
+
+def test_warnings_asymmetric_disconnected_occupied():
+    text = "4 10 10 1 0 0\n0 1 1 1 1 E 2\n1 3 1 1 0 W 5\n2 5 5 1 3 E 1\n3 6 5 1 2 W 1\n"
+    G = parse_graph(text, "w.graph")
+    w = graph_warnings(G)
+    assert any("asymmetric edge cost 0->1" in x for x in w)
+    assert any("disconnected (2 components)" in x for x in w)
+    occ = load_map(paths.map_files("grid")[0])
+    G2 = parse_graph("1 344 344 0.075 0 0\n0 0 0 0\n", "o.graph")   # corner = wall
+    assert any("occupied" in x for x in graph_warnings(G2, occ))
