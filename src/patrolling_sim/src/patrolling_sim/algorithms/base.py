@@ -1,0 +1,173 @@
+"""The strategy base class every patrolling algorithm derives from, and the driver
+protocol through which it acts on the world.
+
+A *strategy* holds one robot's knowledge (graph, idleness tables, what it heard from
+teammates) and makes that robot's decisions. It never talks to ROS or to a simulator
+directly: everything goes through its *driver*, so the same strategy code runs in the ROS
+PatrolAgent node and in the graph-level discrete-event simulator.
+
+Life cycle, as driven by both drivers::
+
+    s = Strategy(ctx)                      # ctx: StrategyContext (graph, ids, rng, params)
+    s.start(start_vertex, now)             # once, at GO; the robot stands on start_vertex
+    v = s.next_vertex(now)                 # where to go first
+    ...robot travels, arrives at v...
+    s.on_arrival(v, now)                   # tables updated; messages may be sent
+    v = s.next_vertex(now)
+    ...
+    s.on_message(data, now)                # any time: a /results message from a teammate
+    s.on_goal_failed(v, now) -> vertex     # navigation gave up on v: choose another
+
+Time ``now`` is simulated seconds (ROS time in ROS mode). Decisions must depend only on
+the strategy's own state, its inputs and ``ctx.rng`` (a seeded ``random.Random``), so that
+graph mode is deterministic for a given seed.
+"""
+import random
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, List, Optional
+
+from ..graph import PatrolGraph
+
+#: message type ids on /results (patrolling_sim_facts.md section 2.3)
+MSG_INIT = 10
+MSG_TARGET_REACHED = 11
+MSG_INTERFERENCE = 12
+MSG_GBS_REACHED = 31
+MSG_SEBS_REACHED = 32
+MSG_DTA_IDLENESS = 40
+MSG_SSI_TASK_REQUEST = 41
+MSG_SSI_BID = 42
+
+INT16_MAX = 32767
+
+
+class Driver:
+    """What a strategy may ask of the world. Implemented by the ROS agent node and by the
+    graph-level simulator; tests use small fakes."""
+
+    def now(self) -> float:
+        """Current time (s)."""
+        raise NotImplementedError
+
+    def send(self, data: List[int]) -> None:
+        """Broadcast an algorithm message ``[own_id, type, ...]`` on /results. The driver
+        applies the communication delay and loss; payloads must fit int16."""
+        raise NotImplementedError
+
+    def call_later(self, delay: float, fn: Callable[[], None]) -> None:
+        """Run ``fn()`` after ``delay`` seconds without blocking (e.g. an auction deadline)."""
+        raise NotImplementedError
+
+    def redirect(self, vertex: int) -> None:
+        """Abandon the current goal and head to ``vertex`` instead (DTAG's conflict rule)."""
+        raise NotImplementedError
+
+
+@dataclass
+class StrategyContext:
+    """Everything a strategy is constructed from.
+
+    Attributes:
+        graph: the patrol graph (pixel costs for decisions, metre positions for motion).
+        robot_id: own index 0..N-1.
+        team_size: N, as given to the agent (some algorithms also learn it from messages).
+        map_name: map name (selects per-map parameters, e.g. GBS's G1/G2/edge_min).
+        rng: seeded random generator; the only source of randomness allowed.
+        driver: the :class:`Driver`.
+        params: algorithm-specific options (e.g. ``msp_route`` for MSP, DTA params).
+        start_position: the robot's (x, y) in metres at start (DTAG's "origin").
+    """
+    graph: PatrolGraph
+    robot_id: int
+    team_size: int
+    map_name: str
+    rng: random.Random
+    driver: Driver
+    params: Dict[str, Any] = field(default_factory=dict)
+    start_position: Optional[tuple] = None
+
+
+class PatrolStrategy:
+    """Base class. Subclasses set ``name`` (the original's short name), implement
+    :meth:`choose_next` and optionally the hooks. See the module docstring."""
+
+    #: short name used on the command line and in result paths, e.g. "CR"
+    name = None
+    #: value written to /algorithm_params and info.csv ("" if none)
+    algorithm_params = ""
+
+    def __init__(self, ctx: StrategyContext):
+        self.ctx = ctx
+        self.graph = ctx.graph
+        self.id = ctx.robot_id
+        self.rng = ctx.rng
+        self.driver = ctx.driver
+        n = ctx.graph.n
+        self.current = None           # vertex the robot stands on / last reached
+        self.next = None              # vertex it is heading to
+        self.last_visit = [0.0] * n   # time of the last visit known to this robot
+        self.idleness = [0.0] * n     # idleness table, refreshed on events
+
+    # -- life cycle -------------------------------------------------------------------
+    def start(self, start_vertex: int, now: float) -> None:
+        """Called once at GO. Default: last_visit of the start vertex = now + 0.1 (the
+        original's convention, so it is not chosen first) and tables at zero."""
+        self.current = start_vertex
+        self.last_visit = [now] * self.graph.n
+        self.last_visit[start_vertex] = now + 0.1
+        self.update_idleness(now)
+
+    def next_vertex(self, now: float) -> int:
+        """Decide the next goal from ``self.current``; stores it in ``self.next``."""
+        self.next = self.choose_next(now)
+        return self.next
+
+    def on_arrival(self, vertex: int, now: float) -> None:
+        """The robot reached ``vertex`` (after the goal wait). Default: record the visit and
+        refresh the idleness table. Subclasses extend it to send their messages."""
+        self.current = vertex
+        self.last_visit[vertex] = now
+        self.update_idleness(now)
+
+    def on_message(self, data: List[int], now: float) -> None:
+        """A /results message from another robot (own messages are filtered out by the
+        driver). Default: ignore."""
+
+    def on_goal_failed(self, vertex: int, now: float) -> int:
+        """Navigation gave up on ``vertex`` after the resends. Default: as the original's
+        onGoalNotComplete -- recompute; if that gives the failed vertex again, try up to
+        10 random neighbours of the current vertex. Returns the new goal."""
+        v = self.choose_next(now)
+        if v == vertex:
+            nbrs = self.graph.neighbor_ids(self.current)
+            for _ in range(10):
+                cand = self.rng.choice(nbrs)
+                if cand != vertex:
+                    v = cand
+                    break
+        self.next = v
+        return v
+
+    # -- helpers ----------------------------------------------------------------------
+    def choose_next(self, now: float) -> int:
+        raise NotImplementedError
+
+    def update_idleness(self, now: float) -> None:
+        for v in range(self.graph.n):
+            self.idleness[v] = now - self.last_visit[v]
+
+    def send(self, *payload: int) -> None:
+        """Send ``[own_id, *payload]`` through the driver."""
+        self.driver.send([self.id, *[int(x) for x in payload]])
+
+
+#: short name -> strategy class; filled by :func:`register`
+REGISTRY: Dict[str, type] = {}
+
+
+def register(cls):
+    """Class decorator: ``@register`` adds a strategy to :data:`REGISTRY` under ``cls.name``."""
+    if not cls.name:
+        raise ValueError(f"{cls.__name__} has no name")
+    REGISTRY[cls.name] = cls
+    return cls
