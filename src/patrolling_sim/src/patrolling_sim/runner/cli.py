@@ -1,0 +1,229 @@
+"""``scripts/start_experiments.py``: start patrolling experiments (GUI, headless, batches).
+
+Forms::
+
+    start_experiments.py                         # Tk GUI (needs a display)
+    start_experiments.py MAP NROBOTS INITPOS ALG LOC NAV GWAIT COMMDELAY TERM TIMEOUT \\
+                         [CUSTOM_STAGE] [SPEEDUP]  # the original's positional form
+    start_experiments.py --map grid --robots 4 --alg CGG --loc fake_localization \\
+                         --timeout 300 --speedup 4 [...]
+    start_experiments.py --config exp.yaml [flags that override it]
+    start_experiments.py --batch batch.yaml --parallel 2
+
+Everything is validated before anything starts; errors are one line and exit status 2.
+A run exits 0 when it ended normally (timeout or k cycles), 1 when it failed, 130 when
+interrupted. A batch exits 0 only if every run did.
+"""
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+from ..cli import CliParser, run_main, setup_logging
+from ..errors import PatrolInputError
+from .batch import load_batch
+from .config import ExperimentConfig, from_positional, load_config_file
+
+FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
+             "timeout", "cycles", "speedup", "seed", "results_dir", "record_period")
+BOOL_KEYS = ("rviz", "gui_sim", "record")
+
+
+def build_parser():
+    ap = CliParser(prog="start_experiments.py",
+                   description="Start multi-robot patrolling experiments.")
+    ap.add_argument("positional", nargs="*", metavar="ARG",
+                    help="original form: MAP NROBOTS INITPOS ALG LOC NAV GWAIT COMMDELAY TERM "
+                         "TIMEOUT [CUSTOM_STAGE] [SPEEDUP]")
+    ap.add_argument("--config", help="YAML experiment configuration (flags override it)")
+    ap.add_argument("--map")
+    ap.add_argument("--robots", type=int)
+    ap.add_argument("--initpos", help="'default' or a variant letter of initial_poses.txt")
+    ap.add_argument("--alg", help="algorithm short name")
+    ap.add_argument("--loc", help="AMCL | fake_localization")
+    ap.add_argument("--nav", help="spqrel_nav_lite | ros")
+    ap.add_argument("--gwait", type=float, help="goal_reached_wait (s)")
+    ap.add_argument("--comm-delay", dest="comm_delay", type=float, help="communication delay (s)")
+    ap.add_argument("--loss", type=float, help="lost message rate [0, 1)")
+    ap.add_argument("--timeout", type=float, help="sim seconds after GO (0 = none)")
+    ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
+    ap.add_argument("--speedup", type=float, help="simulator pace (<= 0: as fast as possible)")
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--results-dir", dest="results_dir")
+    ap.add_argument("--rviz", action="store_true", default=None, help="open rviz")
+    ap.add_argument("--gui-sim", dest="gui_sim", action="store_true", default=None,
+                    help="open the simulator window")
+    ap.add_argument("--record", action="store_true", default=None,
+                    help="save snapshots and assemble a video of the run")
+    ap.add_argument("--record-period", dest="record_period", type=float,
+                    help="sim seconds between snapshots (default 1)")
+    mode = ap.add_mutually_exclusive_group()
+    mode.add_argument("--headless", action="store_true", help="no GUI (default with arguments)")
+    mode.add_argument("--gui", action="store_true", help="open the Tk launcher")
+    ap.add_argument("--batch", help="YAML batch file (list or grid of configurations)")
+    ap.add_argument("--parallel", type=int, default=1, help="batch runs at a time (default 1)")
+    ap.add_argument("--dry-run", action="store_true",
+                    help="validate and write the launch file, do not run")
+    return ap
+
+
+def config_from_args(args):
+    if args.positional:
+        cfg = from_positional(args.positional)
+    elif args.config:
+        cfg = load_config_file(args.config)
+    else:
+        cfg = ExperimentConfig()
+    if args.positional and args.config:
+        cfg = load_config_file(args.config, cfg)
+    overrides = {k: getattr(args, k) for k in FLAG_KEYS + BOOL_KEYS
+                 if getattr(args, k, None) is not None}
+    return cfg.updated(overrides, "command line")
+
+
+def run_one(cfg, out=print):
+    """Run one validated experiment in this process; returns its Outcome."""
+    from .supervisor import Experiment
+    exp = Experiment(cfg, out=out)
+
+    def on_term(signum, frame):
+        exp.request_stop("terminated by SIGTERM")
+    old = signal.signal(signal.SIGTERM, on_term)
+    try:
+        outcome = exp.run()
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    if cfg.record and getattr(exp, "snapshot_dir", None):
+        try:
+            from .video import assemble_video
+            video = assemble_video(exp.snapshot_dir, exp.prefix + "_run.mp4")
+            if video:
+                out(f"video: {video}")
+        except PatrolInputError as e:
+            out(f"warning: no video: {e}")
+    return outcome
+
+
+def print_summary(outcome, out=print):
+    from .supervisor import read_info
+    info = read_info(outcome.prefix)
+    out(f"result: {outcome.reason} (exit {outcome.exit_code}); wall {outcome.wall_time:.1f} s"
+        + (f", GO after {outcome.go_wall:.1f} s" if outcome.go_wall is not None else ""))
+    if info and len(info) >= 22:
+        out(f"summary: sim {info[10]} s, real {info[11]} s, cycles {info[21]}, visits "
+            f"{info[19]}, idleness avg {info[15]} s / max {info[17]} s, interferences "
+            f"{info[12]} ({info[18]}/min), end {info[13]}")
+    out(f"results: {outcome.prefix}_*")
+    for f in outcome.files:
+        out(f"  {f}")
+
+
+def run_batch(configs, parallel, argv0, out=print):
+    """Run validated configurations, ``parallel`` at a time, each in its own process
+    (each with its own ROS master). Returns the list of (config, exit code, result line)."""
+    import tempfile
+    pending = list(enumerate(configs))
+    running = {}
+    results = [None] * len(configs)
+    tmpdir = tempfile.mkdtemp(prefix="patrol_batch_")
+    done = 0
+    try:
+        while pending or running:
+            while pending and len(running) < parallel:
+                i, cfg = pending.pop(0)
+                path = os.path.join(tmpdir, f"run_{i}.yaml")
+                cfg.save(path)
+                logf = open(os.path.join(tmpdir, f"run_{i}.out"), "w+")
+                p = subprocess.Popen([sys.executable, argv0, "--headless", "--config", path],
+                                     stdout=logf, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, start_new_session=True)
+                running[i] = (p, logf, time.monotonic())
+            time.sleep(0.5)
+            for i, (p, logf, t0) in list(running.items()):
+                if p.poll() is None:
+                    continue
+                logf.seek(0)
+                lines = logf.read().splitlines()
+                logf.close()
+                res = next((l for l in reversed(lines) if l.startswith("results:")), "")
+                why = next((l for l in reversed(lines) if l.startswith("result:")
+                            or ": error:" in l), "")
+                results[i] = (configs[i], p.returncode, why, res, time.monotonic() - t0)
+                del running[i]
+                done += 1
+                c = configs[i]
+                out(f"[{done}/{len(configs)}] run {i + 1}: {c.map_name} N={c.robots} {c.alg} "
+                    f"seed={c.seed} -> exit {p.returncode} ({time.monotonic() - t0:.0f} s) {res}")
+    except KeyboardInterrupt:
+        out("batch interrupted: stopping running experiments")
+        for i, (p, logf, t0) in running.items():
+            try:
+                os.kill(p.pid, signal.SIGINT)
+            except OSError:
+                pass
+        for i, (p, logf, t0) in running.items():
+            try:
+                p.wait(timeout=90)
+            except subprocess.TimeoutExpired:
+                p.kill()
+            results[i] = (configs[i], 130, "interrupted", "", time.monotonic() - t0)
+        raise
+    return results
+
+
+def print_batch_table(results, out=print):
+    out("")
+    out(f"{'#':>3}  {'map':<14} {'N':>3} {'alg':<6} {'seed':>5} {'exit':>4}  {'wall s':>7}  result")
+    for k, r in enumerate(results):
+        if r is None:
+            continue
+        cfg, code, why, res, wall = r
+        out(f"{k + 1:>3}  {cfg.map_name:<14} {cfg.robots:>3} {cfg.alg:<6} {cfg.seed:>5} "
+            f"{code:>4}  {wall:>7.0f}  {res[len('results: '):] if res else why}")
+
+
+def main(argv):
+    args = build_parser().parse_args(argv)
+    setup_logging()
+    if args.batch:
+        if args.positional or args.gui:
+            raise PatrolInputError("argument --batch: cannot be combined with the positional "
+                                   "form or --gui")
+        if args.parallel < 1:
+            raise PatrolInputError(f"argument --parallel: must be >= 1, got {args.parallel}")
+        base = load_config_file(args.config) if args.config else ExperimentConfig()
+        configs = load_batch(args.batch, base)
+        for k, c in enumerate(configs):
+            try:
+                c.validate()
+            except PatrolInputError as e:
+                raise PatrolInputError(f"{args.batch}: entry {k + 1}: {e}") from None
+        results = run_batch(configs, args.parallel, os.path.abspath(sys.argv[0]))
+        print_batch_table(results)
+        return 0 if all(r and r[1] == 0 for r in results) else 1
+    no_config = not args.positional and not args.config and not any(
+        getattr(args, k) is not None for k in FLAG_KEYS)
+    if args.gui or (no_config and not args.headless):
+        if not os.environ.get("DISPLAY"):
+            raise PatrolInputError("no display for the GUI: give --headless with --map/--robots/"
+                                   "--alg..., --config FILE, or the positional form")
+        from .gui import run_gui
+        return run_gui(os.path.abspath(sys.argv[0]),
+                       load_config_file(args.config) if args.config else None)
+    cfg = config_from_args(args).validate()
+    if args.dry_run:
+        from .supervisor import Experiment
+        exp = Experiment(cfg)
+        prefix = exp.prepare()
+        print(f"launch file: {exp.launch_path}")
+        print(f"results: {prefix}_*")
+        return 0
+    outcome = run_one(cfg)
+    print_summary(outcome)
+    return outcome.exit_code
+
+
+def entry():
+    sys.exit(run_main(main, "start_experiments.py"))

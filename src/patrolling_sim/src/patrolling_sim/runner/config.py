@@ -1,0 +1,245 @@
+"""Experiment configuration: one dataclass, read from the original's positional command
+line, from argparse flags, from a YAML file, or from the GUI, and validated before anything
+starts.
+
+Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
+
+    map          shipped map name (or path to a map .yaml)          required
+    robots       team size N >= 1                                    required
+    alg          algorithm short name (RAND, CR, HCR, HPCC, CGG, MSP, GBS, SEBS, CBLS,
+                 DTAG, DTAP, or any registered strategy)             required
+    initpos      "default" or a lettered variant of params/initial_poses.txt ("a", "b", ...)
+    loc          AMCL | fake_localization                            (AMCL)
+    nav          spqrel_nav_lite | ros                               (spqrel_nav_lite)
+    gwait        goal_reached_wait, s >= 0                           (0)
+    comm_delay   communication_delay, s >= 0                         (0)
+    loss         lost_message_rate in [0, 1)                         (0)
+    timeout      sim seconds after GO; 0 = no timeout                (0)
+    cycles       stop after k complete patrol cycles; 0 = no limit   (0)
+    speedup      simulator pace: 1 = real time, <= 0 = as fast as possible   (1)
+    seed         random seed of agents and simulator noise           (0)
+    results_dir  results root                                        (<workspace>/results)
+    rviz         open rviz with launch/patrol.rviz                   (false)
+    gui_sim      open the simulator's window                         (false)
+    record       save simulator snapshots and assemble a video       (false)
+    record_period  sim seconds between snapshots                     (1.0)
+
+``validate()`` raises :class:`PatrolInputError` with one line naming the key or argument.
+"""
+import dataclasses
+import os
+from dataclasses import dataclass, field
+
+import yaml
+
+from .. import paths
+from ..errors import PatrolInputError
+
+LOC_MODES = ("AMCL", "fake_localization")
+NAV_MODES = ("spqrel_nav_lite", "ros")
+NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lite"}
+
+
+def default_results_dir():
+    return os.path.join(paths.data_root(), "results")
+
+
+@dataclass
+class ExperimentConfig:
+    map: str = None
+    robots: int = None
+    alg: str = None
+    initpos: str = "default"
+    loc: str = "AMCL"
+    nav: str = "spqrel_nav_lite"
+    gwait: float = 0.0
+    comm_delay: float = 0.0
+    loss: float = 0.0
+    timeout: float = 0.0
+    cycles: int = 0
+    speedup: float = 1.0
+    seed: int = 0
+    results_dir: str = field(default_factory=default_results_dir)
+    rviz: bool = False
+    gui_sim: bool = False
+    record: bool = False
+    record_period: float = 1.0
+
+    # ------------------------------------------------------------------ conversion
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+    def to_yaml(self):
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    def save(self, path):
+        tmp = f"{path}.tmp{os.getpid()}"
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(self.to_yaml())
+        os.replace(tmp, path)
+
+    def updated(self, values, source="config"):
+        """Copy with ``values`` (a dict of key -> raw value) applied and type-converted.
+        Unknown keys and values of the wrong type raise PatrolInputError naming
+        ``source`` and the key."""
+        out = dataclasses.replace(self)
+        types = {f.name: f.type for f in dataclasses.fields(self)}
+        for raw_key, value in values.items():
+            key = str(raw_key).replace("-", "_")
+            if key == "comm_delay" or key == "commdelay":
+                key = "comm_delay"
+            if key not in types:
+                raise PatrolInputError(f"{source}: unknown key '{raw_key}' (known: "
+                                       f"{', '.join(types)})")
+            if value is None:
+                continue
+            setattr(out, key, _convert(value, types[key], f"{source}: key '{raw_key}'"))
+        return out
+
+    # ------------------------------------------------------------------ validation
+    def validate(self, check_start_positions=True, check_writable=True):
+        """Check every field; return self. Raises PatrolInputError (one line)."""
+        if not self.map:
+            raise PatrolInputError("argument --map: a map is required")
+        yaml_path, graph_path = paths.map_files(self.map)
+        for p in (yaml_path, graph_path):
+            if not os.path.isfile(p):
+                raise PatrolInputError(f"argument --map: '{self.map}': file {p} not found")
+        if self.robots is None:
+            raise PatrolInputError("argument --robots: a team size is required")
+        if self.robots < 1:
+            raise PatrolInputError(f"argument --robots: team size must be >= 1, got {self.robots}")
+        if not self.alg:
+            raise PatrolInputError("argument --alg: an algorithm is required")
+        from ..algorithms import REGISTRY
+        if self.alg not in REGISTRY:
+            raise PatrolInputError(f"argument --alg: unknown algorithm '{self.alg}' (known: "
+                                   f"{', '.join(sorted(REGISTRY))})")
+        self.nav = NAV_ALIASES.get(self.nav, self.nav)
+        if self.loc not in LOC_MODES:
+            raise PatrolInputError(f"argument --loc: must be one of {', '.join(LOC_MODES)}, "
+                                   f"got '{self.loc}'")
+        if self.nav not in NAV_MODES:
+            raise PatrolInputError(f"argument --nav: must be one of {', '.join(NAV_MODES)}, "
+                                   f"got '{self.nav}'")
+        for name in ("gwait", "comm_delay", "timeout", "record_period"):
+            if getattr(self, name) < 0:
+                raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be >= 0, "
+                                       f"got {getattr(self, name)}")
+        if not 0 <= self.loss < 1:
+            raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
+        if self.cycles < 0:
+            raise PatrolInputError(f"argument --cycles: must be >= 0, got {self.cycles}")
+        if self.record and self.record_period <= 0:
+            raise PatrolInputError("argument --record-period: must be > 0 when recording")
+        if not self.initpos:
+            self.initpos = "default"
+        if check_start_positions:
+            self.start_positions()
+        if check_writable:
+            check_writable_dir(self.results_dir, "argument --results-dir")
+        return self
+
+    def start_positions(self):
+        """[(x, y)] for the team (table entry or computed); validates the team size."""
+        from ..graph import PatrolGraph
+        from ..initial_poses import load_initial_poses, start_positions
+        occ, G = paths.load_map_bundle(self.map)
+        table_path = paths.initial_poses_file()
+        pos, _ = start_positions(paths.map_name(self.map), self.robots, PatrolGraph(G), occ,
+                                 self.initpos, load_initial_poses(table_path), table_path)
+        return pos
+
+    @property
+    def map_name(self):
+        return paths.map_name(self.map)
+
+
+def _convert(value, typ, where):
+    try:
+        if typ in (bool, "bool"):
+            if isinstance(value, bool):
+                return value
+            s = str(value).strip().lower()
+            if s in ("1", "true", "yes", "on"):
+                return True
+            if s in ("0", "false", "no", "off"):
+                return False
+            raise ValueError
+        if typ in (int, "int"):
+            if isinstance(value, bool):
+                raise ValueError
+            f = float(value)
+            if f != int(f):
+                raise ValueError
+            return int(f)
+        if typ in (float, "float"):
+            if isinstance(value, bool):
+                raise ValueError
+            f = float(value)
+            if f != f or f in (float("inf"), float("-inf")):
+                raise ValueError
+            return f
+        return str(value)
+    except (TypeError, ValueError):
+        tname = getattr(typ, "__name__", typ)
+        raise PatrolInputError(f"{where}: expected {tname}, got {value!r}") from None
+
+
+def check_writable_dir(path, what):
+    """Create ``path`` if needed and check a file can be written in it."""
+    try:
+        os.makedirs(path, exist_ok=True)
+        probe = os.path.join(path, f".write_probe_{os.getpid()}")
+        with open(probe, "w") as f:
+            f.write("")
+        os.remove(probe)
+    except OSError as e:
+        raise PatrolInputError(f"{what}: '{path}' is not writable ({e.strerror})") from None
+
+
+def load_config_file(path, base=None):
+    """Read a YAML experiment configuration (a mapping of keys as above)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except FileNotFoundError:
+        raise PatrolInputError(f"{path}: configuration file not found") from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f":{mark.line + 1}" if mark else ""
+        raise PatrolInputError(f"{path}{where}: invalid YAML") from None
+    except OSError as e:
+        raise PatrolInputError(f"{path}: cannot read configuration ({e.strerror})") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise PatrolInputError(f"{path}: configuration must be a mapping of keys to values")
+    return (base or ExperimentConfig()).updated(data, path)
+
+
+POSITIONAL = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay",
+              "term", "timeout", "custom_stage", "speedup")
+
+
+def from_positional(args):
+    """The original's form: MAP NROBOTS INITPOS ALG LOC NAV GWAIT COMMDELAY TERM TIMEOUT
+    [CUSTOM_STAGE] [SPEEDUP]. TERM and CUSTOM_STAGE are accepted and ignored (no terminal
+    windows, our simulator has no custom build)."""
+    if not 10 <= len(args) <= 12:
+        raise PatrolInputError(
+            f"positional form needs 10 to 12 arguments (MAP NROBOTS INITPOS ALG LOC NAV GWAIT "
+            f"COMMDELAY TERM TIMEOUT [CUSTOM_STAGE] [SPEEDUP]), got {len(args)}")
+    values = {}
+    for name, value in zip(POSITIONAL, args):
+        if name in ("term", "custom_stage"):
+            if name == "custom_stage":
+                _convert(value, bool, "argument CUSTOM_STAGE")
+            continue
+        values[name] = value
+    cfg = ExperimentConfig()
+    for name, value in values.items():
+        where = f"argument {name.upper()}"
+        typ = {f.name: f.type for f in dataclasses.fields(cfg)}[name]
+        setattr(cfg, name, _convert(value, typ, where))
+    return cfg

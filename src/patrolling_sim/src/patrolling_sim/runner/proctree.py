@@ -1,0 +1,93 @@
+"""Track and stop one process tree, and nothing else.
+
+roslaunch starts every node in a session of its own (``os.setsid``), so killing
+roslaunch's process group does not reach the nodes. :class:`ProcessTree` remembers every
+descendant of a root pid it has seen (pid plus start time, so a recycled pid is never
+signalled) and can stop the survivors. It never looks processes up by name.
+"""
+import os
+import signal
+import time
+
+
+def _stat(pid):
+    """(ppid, starttime) of a live process, or None."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            data = f.read().decode(errors="replace")
+    except OSError:
+        return None
+    # the command name may contain spaces and parentheses: split after the last ')'
+    rest = data[data.rfind(")") + 2:].split()
+    try:
+        return int(rest[1]), int(rest[19])
+    except (IndexError, ValueError):
+        return None
+
+
+def _children_map():
+    kids = {}
+    for name in os.listdir("/proc"):
+        if not name.isdigit():
+            continue
+        st = _stat(int(name))
+        if st:
+            kids.setdefault(st[0], []).append(int(name))
+    return kids
+
+
+class ProcessTree:
+    def __init__(self, root_pid):
+        self.root = root_pid
+        self.known = {}     # pid -> starttime
+        self.refresh()
+
+    def refresh(self):
+        """Record the current descendants of the root (and the root)."""
+        kids = _children_map()
+        stack = [self.root]
+        while stack:
+            pid = stack.pop()
+            st = _stat(pid)
+            if st is None:
+                continue
+            self.known.setdefault(pid, st[1])
+            stack.extend(kids.get(pid, []))
+
+    def alive(self):
+        """Known processes still running (same pid and start time)."""
+        out = []
+        for pid, start in self.known.items():
+            st = _stat(pid)
+            if st is not None and st[1] == start:
+                try:
+                    with open(f"/proc/{pid}/stat", "rb") as f:
+                        state = f.read().decode(errors="replace")
+                    if state[state.rfind(")") + 2] == "Z":
+                        continue        # zombie: already dead, waiting to be reaped
+                except OSError:
+                    continue
+                out.append(pid)
+        return out
+
+    def signal_all(self, sig):
+        for pid in self.alive():
+            try:
+                os.kill(pid, sig)
+            except OSError:
+                pass
+
+    def stop(self, grace=10.0):
+        """SIGINT, then SIGTERM, then SIGKILL the survivors; returns the pids killed hard."""
+        self.refresh()
+        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 3.0), (signal.SIGKILL, 2.0)):
+            if not self.alive():
+                return []
+            hard = self.alive() if sig == signal.SIGKILL else []
+            self.signal_all(sig)
+            deadline = time.monotonic() + wait
+            while time.monotonic() < deadline and self.alive():
+                time.sleep(0.1)
+            if hard:
+                return hard
+        return []
