@@ -1,0 +1,40 @@
+"""``scripts/report.py RESULTS_DIR... --out OUT_DIR [--title T]`` (see docs/report.md)."""
+import logging
+import sys
+
+from ..cli import CliParser, run_main, setup_logging
+
+PROG = "report.py"
+
+
+def parser():
+    ap = CliParser(prog=PROG, description=(
+        "Analyse patrolling results: find every *_info.csv under the given directories "
+        "(ROS mode and graph mode alike), and write report.html (self-contained), "
+        "summary.csv, runs.csv, pairwise_pvalues.csv and PNG figures into OUT_DIR."))
+    ap.add_argument("dirs", nargs="+", metavar="RESULTS_DIR",
+                    help="results folder(s) (searched recursively) or *_info.csv files")
+    ap.add_argument("--out", required=True, metavar="OUT_DIR", help="output folder (created)")
+    ap.add_argument("--title", default=None, help="report title")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no warnings, no summary")
+    return ap
+
+
+def main(argv):
+    args = parser().parse_args(argv)
+    if args.title is not None and not args.title.strip():
+        parser().error("argument --title: empty title")
+    setup_logging()
+    logging.getLogger("matplotlib").setLevel(logging.WARNING)
+    from .build import build_report
+    res = build_report(args.dirs, args.out, args.title)
+    if not args.quiet:
+        for w in res["warnings"]:
+            sys.stderr.write(f"{PROG}: warning: {w}\n")
+        print(f"{res['runs']} run(s), {len(res['summary'])} group(s); report: {res['files'][0]}")
+    return 0
+
+
+def entry():
+    logging.captureWarnings(True)
+    sys.exit(run_main(main, PROG))

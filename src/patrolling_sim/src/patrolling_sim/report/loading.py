@@ -1,0 +1,208 @@
+"""Find and load experiment results (the original monitor's file formats).
+
+One experiment is one *prefix* ``<dir>/<map>_<N>/<ALG>/<host>/<YYYYMMDD_HHMMSS>[_k]`` with
+the files ``<prefix>_info.csv`` (one line, 22 ``;``-separated fields, no header) and
+``<prefix>_idleness.csv`` (header ``Time;Robot;Node;Idleness;Interferences``). ROS mode and
+graph mode write the same files; graph mode's ``nav_module`` field is ``graph``.
+
+A run is identified by its ``_info.csv`` (written when the run ends). An ``_idleness.csv``
+without an ``_info.csv`` belongs to a run that did not finish (killed, crashed, still
+running): it is skipped with a one-line warning. A malformed info.csv or idleness.csv is an
+error (:class:`PatrolInputError` naming the file and the problem).
+"""
+import logging
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..errors import PatrolInputError
+
+log = logging.getLogger(__name__)
+
+INFO_FIELDS = ("map", "team_size", "initial_positions", "goal_wait", "comm_delay",
+               "nav_module", "algorithm", "algorithm_params", "hostname", "date",
+               "sim_duration", "real_duration", "interferences", "termination", "idl_min",
+               "idl_avg", "idl_stddev", "idl_max", "interference_rate", "total_visits",
+               "avg_visits_per_node", "complete_cycles")
+_INT_FIELDS = ("team_size", "interferences", "total_visits", "complete_cycles")
+_FLOAT_FIELDS = ("goal_wait", "comm_delay", "sim_duration", "real_duration", "idl_min",
+                 "idl_avg", "idl_stddev", "idl_max", "interference_rate",
+                 "avg_visits_per_node")
+IDLENESS_COLUMNS = ("Time", "Robot", "Node", "Idleness", "Interferences")
+INFO_SUFFIX = "_info.csv"
+IDLENESS_SUFFIX = "_idleness.csv"
+
+
+@dataclass
+class Run:
+    """One experiment: its info.csv fields and its idleness samples."""
+    prefix: str
+    info: dict
+    samples: pd.DataFrame = field(repr=False)
+
+    @property
+    def label(self):
+        """Short unique-ish name: ``ALG N=.. map date``."""
+        return (f"{self.info['algorithm']} N={self.info['team_size']} {self.info['map']} "
+                f"{os.path.basename(self.prefix)}")
+
+    @property
+    def run_id(self):
+        """``<map>_<N>/<ALG>/<host>/<date>`` (the prefix relative to its results root)."""
+        parts = self.prefix.replace(os.sep, "/").split("/")
+        return "/".join(parts[-4:])
+
+
+def parse_info(path):
+    """Parse one ``_info.csv`` file into a dict keyed by :data:`INFO_FIELDS`.
+
+    Raises:
+        PatrolInputError: unreadable file, not exactly one non-empty line, not 22 fields,
+            or a numeric field that is not a (finite, non-negative) number.
+    """
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except (OSError, UnicodeDecodeError) as e:
+        raise PatrolInputError(f"{path}: cannot read info file ({e.__class__.__name__})") from None
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        raise PatrolInputError(f"{path}: empty info file (expected one line of 22 ';'-separated fields)")
+    if len(lines) > 1:
+        raise PatrolInputError(f"{path}: {len(lines)} lines, expected one line of 22 fields")
+    fields = lines[0].split(";")
+    if len(fields) != len(INFO_FIELDS):
+        raise PatrolInputError(f"{path}: {len(fields)} ';'-separated fields, expected "
+                               f"{len(INFO_FIELDS)}")
+    info = dict(zip(INFO_FIELDS, (s.strip() for s in fields)))
+    for k in _INT_FIELDS:
+        try:
+            info[k] = int(info[k])
+        except ValueError:
+            raise PatrolInputError(f"{path}: field {INFO_FIELDS.index(k) + 1} ({k}) is "
+                                   f"'{info[k]}', expected an integer") from None
+    for k in _FLOAT_FIELDS:
+        try:
+            info[k] = float(info[k])
+        except ValueError:
+            raise PatrolInputError(f"{path}: field {INFO_FIELDS.index(k) + 1} ({k}) is "
+                                   f"'{info[k]}', expected a number") from None
+        if not math.isfinite(info[k]):
+            raise PatrolInputError(f"{path}: field {INFO_FIELDS.index(k) + 1} ({k}) is "
+                                   f"'{info[k]}', expected a finite number")
+    if info["team_size"] < 1:
+        raise PatrolInputError(f"{path}: field 2 (team_size) is {info['team_size']}, expected >= 1")
+    for k in ("map", "algorithm"):
+        if not info[k]:
+            raise PatrolInputError(f"{path}: field {INFO_FIELDS.index(k) + 1} ({k}) is empty")
+    return info
+
+
+def read_idleness(path):
+    """Read an ``_idleness.csv`` file into a DataFrame with columns :data:`IDLENESS_COLUMNS`
+    (Time, Idleness float; Robot, Node, Interferences int). A header-only file gives an
+    empty frame.
+
+    Raises:
+        PatrolInputError: missing/unreadable file, wrong header, non-numeric or negative
+            values.
+    """
+    try:
+        with open(path, encoding="utf-8") as f:
+            header = f.readline().strip()
+    except FileNotFoundError:
+        raise PatrolInputError(f"{path}: idleness file not found") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise PatrolInputError(f"{path}: cannot read idleness file ({e.__class__.__name__})") from None
+    if header.split(";") != list(IDLENESS_COLUMNS):
+        raise PatrolInputError(f"{path}: header is '{header[:80]}', expected "
+                               f"'{';'.join(IDLENESS_COLUMNS)}'")
+    try:
+        df = pd.read_csv(path, sep=";", header=0, dtype=str, skip_blank_lines=True)
+    except (pd.errors.ParserError, ValueError) as e:
+        raise PatrolInputError(f"{path}: malformed idleness file "
+                               f"({str(e).splitlines()[0][:120]})") from None
+    out = {}
+    for col in IDLENESS_COLUMNS:
+        vals = pd.to_numeric(df[col], errors="coerce")
+        bad = vals.isna() | ~np.isfinite(vals.astype(float))
+        if bad.any():
+            i = int(np.flatnonzero(bad.to_numpy())[0])
+            raise PatrolInputError(f"{path}:{i + 2}: column {col} is '{df[col].iloc[i]}', "
+                                   f"expected a number")
+        out[col] = vals.astype(float)
+    frame = pd.DataFrame(out)
+    for col in ("Robot", "Node", "Interferences"):
+        frac = frame[col] != frame[col].round()
+        if frac.any():
+            i = int(np.flatnonzero(frac.to_numpy())[0])
+            raise PatrolInputError(f"{path}:{i + 2}: column {col} is '{df[col].iloc[i]}', "
+                                   f"expected an integer")
+        frame[col] = frame[col].astype(np.int64)
+    for col in ("Node", "Idleness"):
+        neg = frame[col] < 0
+        if neg.any():
+            i = int(np.flatnonzero(neg.to_numpy())[0])
+            raise PatrolInputError(f"{path}:{i + 2}: column {col} is negative ('{df[col].iloc[i]}')")
+    return frame
+
+
+def find_runs(dirs):
+    """Return (prefixes, warnings): every run prefix under ``dirs`` (sorted, de-duplicated
+    by real path) and one warning line per idleness file without an info file.
+
+    Raises:
+        PatrolInputError: a path that does not exist, or no results under any of them.
+    """
+    prefixes = {}
+    orphans = []
+    for d in dirs:
+        if not os.path.exists(d):
+            raise PatrolInputError(f"argument RESULTS_DIR: '{d}' does not exist")
+        if os.path.isfile(d):
+            if d.endswith(INFO_SUFFIX):
+                candidates = [(os.path.dirname(d) or ".", [], [os.path.basename(d)])]
+            else:
+                raise PatrolInputError(f"argument RESULTS_DIR: '{d}' is a file but not a "
+                                       f"*{INFO_SUFFIX} file")
+        else:
+            candidates = os.walk(d, onerror=None, followlinks=False)
+        found_here = 0
+        for root, _dirs, files in candidates:
+            names = set(files)
+            for name in files:
+                if name.endswith(INFO_SUFFIX):
+                    p = os.path.join(root, name[: -len(INFO_SUFFIX)])
+                    prefixes.setdefault(os.path.realpath(p), p)
+                    found_here += 1
+                elif name.endswith(IDLENESS_SUFFIX):
+                    stem = name[: -len(IDLENESS_SUFFIX)]
+                    if stem + INFO_SUFFIX not in names:
+                        orphans.append(os.path.join(root, name))
+        if not found_here and not any(o.startswith(os.path.join(d, "")) or o == d
+                                      for o in orphans):
+            raise PatrolInputError(f"argument RESULTS_DIR: '{d}' holds no results "
+                                   f"(no *{INFO_SUFFIX} file)")
+    warnings = [f"{o}: no matching {INFO_SUFFIX} (run did not finish?): skipped"
+                for o in sorted(set(orphans))]
+    if not prefixes:
+        raise PatrolInputError("argument RESULTS_DIR: no finished run (no *_info.csv file) in "
+                               + ", ".join(f"'{d}'" for d in dirs))
+    return sorted(prefixes.values()), warnings
+
+
+def load_run(prefix):
+    """Load one run (info + idleness samples)."""
+    info = parse_info(prefix + INFO_SUFFIX)
+    samples = read_idleness(prefix + IDLENESS_SUFFIX)
+    return Run(prefix=prefix, info=info, samples=samples)
+
+
+def load_runs(dirs):
+    """Find and load every run under ``dirs``. Returns (runs, warnings)."""
+    prefixes, warnings = find_runs(dirs)
+    runs = [load_run(p) for p in prefixes]
+    return runs, warnings
