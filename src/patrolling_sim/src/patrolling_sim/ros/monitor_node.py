@@ -1,0 +1,306 @@
+"""The monitor node (patrolling_sim_facts.md section 5): handshake, visit processing,
+metrics and result files, termination.
+
+All measurements are made by :class:`patrolling_sim.monitor_core.MonitorCore` and written
+by :class:`patrolling_sim.results.ResultWriter`; this module is the ROS glue:
+
+- counts ``[id,10,1]``; when all N robots announced, GO ``[-1,10,100]`` (3 times, 0.5 s
+  apart, and again whenever a robot announces after GO) and time zero;
+- ``[id,11,v]`` -> idleness row, results block on every new complete cycle;
+  ``[id,12]`` -> interference; a timeresults row every 900 s of sim time;
+- ends on ``~timeout`` (sim s since GO, "TIMEOUT"), ``~cycles`` complete cycles ("CYCLES"),
+  a robot silent for ``~dead_robot_timeout`` s ("FAIL"), ``/simulation_abort`` true
+  ("ABORT") or ``/simulation_running`` false ("STOPPED"): publishes END ``[-1,10,999]``,
+  writes info.csv and exits 0. On SIGINT / shutdown it writes info.csv too ("TIMEOUT").
+- publishes live graph markers on ``/patrol_graph_markers`` (~1 Hz).
+"""
+import math
+import os
+import sys
+import threading
+import time
+
+import rospy
+from std_msgs.msg import Int16MultiArray
+from visualization_msgs.msg import MarkerArray
+
+from .. import paths
+from ..errors import PatrolInputError
+from ..graph import PatrolGraph, load_graph
+from ..monitor_core import MonitorCore
+from ..results import ResultWriter, RunInfo, default_prefix, timestamp
+from . import markers
+
+MONITOR_ID = -1
+MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE = 10, 11, 12
+GO, END = 100, 999
+TIMERESULTS_PERIOD = 900.0     # sim s between two timeresults rows
+LOOP_HZ = 10.0
+
+
+class MonitorError(Exception):
+    """Bad argument / parameter; ``str()`` is one line."""
+
+
+def _num_param(name, default, kind=float, minimum=None):
+    raw = rospy.get_param(name, default)
+    try:
+        val = kind(raw)
+    except (TypeError, ValueError):
+        raise MonitorError(f"{name}: expected a number, got {raw!r}")
+    if isinstance(val, float) and math.isnan(val):
+        raise MonitorError(f"{name}: expected a number, got {raw!r}")
+    if minimum is not None and val < minimum:
+        raise MonitorError(f"{name} must be >= {minimum}, got {raw!r}")
+    return val
+
+
+def _bool_param(name, default):
+    raw = rospy.get_param(name, default)
+    if isinstance(raw, str):
+        return raw.strip().lower() in ("1", "true", "yes", "on")
+    return bool(raw)
+
+
+class Monitor:
+    """Construct inside an initialised rospy node, then :meth:`run`."""
+
+    def __init__(self, map_arg, alg, team_size):
+        try:
+            _, graph_path = paths.map_files(map_arg)
+            self.graph = PatrolGraph(load_graph(graph_path))
+        except PatrolInputError as e:
+            raise MonitorError(str(e))
+        self.map_name = paths.map_name(map_arg)
+        self.alg = alg
+        self.n_robots = team_size
+        self.results_dir = str(rospy.get_param("~results_dir", "") or
+                               os.path.join(os.getcwd(), "results"))
+        prefix = str(rospy.get_param("~run_prefix", "") or "")
+        self.timeout = _num_param("~timeout", 0.0, minimum=0.0)
+        self.max_cycles = _num_param("~cycles", 0, int, minimum=0)
+        self.dead_timeout = _num_param("~dead_robot_timeout", 300.0, minimum=0.0)
+        self.publish_markers = _bool_param("~publish_markers", True)
+        goal_wait = _num_param("/goal_reached_wait", 0.0, minimum=0.0)
+        comm_delay = _num_param("/communication_delay", 0.0, minimum=0.0)
+        stamp = timestamp()
+        if not prefix:
+            prefix = default_prefix(self.results_dir, self.map_name, team_size, alg,
+                                    stamp=stamp)
+        else:
+            base = os.path.basename(prefix)
+            if len(base) >= 15 and base[:8].isdigit() and base[8] == "_":
+                stamp = base[:15]
+        self.info = RunInfo(map=self.map_name, team_size=team_size,
+                            initial_positions=str(rospy.get_param("/initial_positions",
+                                                                  "default")),
+                            goal_wait=goal_wait, comm_delay=comm_delay,
+                            nav_module=str(rospy.get_param("/navigation_module", "ros")),
+                            alg=alg,
+                            algorithm_params=str(rospy.get_param("/algorithm_params", "")),
+                            date=stamp)
+        try:
+            self.writer = ResultWriter(prefix, self.info)
+        except OSError as e:
+            raise MonitorError(f"~run_prefix/~results_dir: cannot create result files at "
+                               f"{prefix}: {e.strerror or e}")
+        self.prefix = prefix
+        self.core = MonitorCore(self.graph.n, team_size)
+        self.lock = threading.RLock()
+        self.finished = False
+        self.termination = None
+        self.wall_zero = None
+        self.last_time_row = 0.0
+        self.go_count = 0
+        rospy.set_param("/simulation_running", True)
+        rospy.set_param("/simulation_abort", False)
+        self.pub = rospy.Publisher("/results", Int16MultiArray, queue_size=100)
+        self.marker_pub = rospy.Publisher("/patrol_graph_markers", MarkerArray, queue_size=1,
+                                          latch=True)
+        self.sub = rospy.Subscriber("/results", Int16MultiArray, self._on_results,
+                                    queue_size=1000)
+        rospy.on_shutdown(self._on_shutdown)
+        rospy.loginfo("monitor: %s, %d robots, %s; results prefix %s", self.map_name,
+                      team_size, alg, prefix)
+
+    # -- messages -----------------------------------------------------------------------
+    def _send(self, *data):
+        self.pub.publish(Int16MultiArray(data=list(data)))
+
+    def _send_go(self, times=1):
+        def go(_e=None):
+            if not self.finished:
+                self._send(MONITOR_ID, MSG_INIT, GO)
+        go()
+        for k in range(1, times):
+            rospy.Timer(rospy.Duration(0.5 * k), go, oneshot=True)
+
+    def _on_results(self, msg):
+        d = list(msg.data)
+        if len(d) < 2 or d[0] == MONITOR_ID:
+            return
+        rid, kind = d[0], d[1]
+        now = rospy.get_time()
+        with self.lock:
+            if self.finished:
+                return
+            if kind == MSG_INIT and len(d) > 2 and d[2] == 1:
+                if not self.core.started:
+                    if rid not in self.core.ready and 0 <= rid < self.n_robots:
+                        rospy.loginfo("Robot [ID = %d] is Active!", rid)
+                    if self.core.robot_ready(rid):
+                        rospy.loginfo("All Robots GO!")
+                        self.core.start(now)
+                        self.wall_zero = time.time()
+                        self._send_go(3)
+                elif 0 <= rid < self.n_robots:
+                    self._send_go(1)       # a late announcer missed GO
+            elif kind == MSG_TARGET_REACHED and len(d) > 2 and self.core.started:
+                self._visit(rid, d[2], now)
+            elif kind == MSG_INTERFERENCE and self.core.started:
+                self.core.interference(rid, now)
+                rospy.loginfo("Robot %d sent interference (total %d)", rid,
+                              self.core.interferences)
+
+    def _visit(self, rid, v, now):
+        r = self.core.visit(rid, v, now)
+        if r is None:
+            rospy.logwarn("monitor: robot %d reported vertex %d outside the graph", rid, v)
+            return
+        if r.idleness is not None:
+            self.writer.idleness_row(now, rid, v, r.idleness, self.core.interferences)
+        rospy.loginfo("[%.1f] robot %d reached %d (%s), idleness %s, cycles %d", r.t, rid, v,
+                      self.alg, "-" if r.idleness is None else f"{r.idleness:.1f}", r.cycles)
+        if r.new_cycle:
+            if r.cycles == 1:
+                self.info.algorithm_params = str(rospy.get_param("/algorithm_params",
+                                                                 self.info.algorithm_params))
+                try:
+                    self.info.goal_wait = float(rospy.get_param("/goal_reached_wait",
+                                                                self.info.goal_wait))
+                except (TypeError, ValueError):
+                    pass
+            rospy.loginfo("Patrol completed [%d]. Write to File!", r.cycles)
+            self.writer.cycle_block(self.core.stats(now), self._real_elapsed())
+            if self.max_cycles and r.cycles >= self.max_cycles:
+                self._finish("CYCLES", now)
+
+    def _real_elapsed(self):
+        return 0.0 if self.wall_zero is None else time.time() - self.wall_zero
+
+    # -- loop and termination -----------------------------------------------------------
+    def run(self):
+        rate = rospy.Rate(LOOP_HZ)
+        last_markers = -1e9
+        last_params = -1e9
+        while not rospy.is_shutdown() and not self.finished:
+            now = rospy.get_time()
+            wall = time.time()
+            with self.lock:
+                if self.core.started and not self.finished:
+                    t = self.core.elapsed(now)
+                    if t - self.last_time_row >= TIMERESULTS_PERIOD:
+                        self.last_time_row += TIMERESULTS_PERIOD
+                        self.writer.time_row(self.core.stats(now))
+                    if self.timeout > 0 and t >= self.timeout:
+                        self._finish("TIMEOUT", now)
+                    elif self.dead_timeout > 0:
+                        for rid, last in self.core.last_report.items():
+                            if t - last > self.dead_timeout:
+                                rospy.logerr("monitor: robot %d sent no visit for %.0f s: FAIL",
+                                             rid, t - last)
+                                self._finish("FAIL", now)
+                                break
+            if self.finished:
+                break
+            if wall - last_params >= 1.0:
+                last_params = wall
+                try:
+                    if _bool_param("/simulation_abort", False):
+                        self._finish("ABORT", now)
+                    elif not _bool_param("/simulation_running", True):
+                        self._finish("STOPPED", now)
+                except (ConnectionError, OSError, rospy.ROSException):
+                    pass
+            if self.publish_markers and wall - last_markers >= 1.0:
+                last_markers = wall
+                self._publish_markers(now)
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                break
+        if self.finished and not rospy.is_shutdown():
+            # repeat END once and let the last messages go out before the node exits
+            time.sleep(0.25)
+            self._send(MONITOR_ID, MSG_INIT, END)
+            time.sleep(0.25)
+        return 0
+
+    def _publish_markers(self, now):
+        with self.lock:
+            idl = self.core.current_idleness(now) if self.core.started else [0.0] * self.graph.n
+        self.marker_pub.publish(markers.build_marker_array(self.graph, idl,
+                                                           stamp=rospy.Time.now()))
+
+    def _finish(self, termination, now):
+        """End of the run: END to the agents, info.csv, flags."""
+        with self.lock:
+            if self.finished:
+                return
+            self.finished = True
+            self.termination = termination
+            try:
+                self._send(MONITOR_ID, MSG_INIT, END)
+            except rospy.ROSException:
+                pass
+            try:
+                rospy.set_param("/simulation_running", False)
+            except (ConnectionError, OSError, rospy.ROSException):
+                pass
+            self._write_info(termination, now)
+
+    def _write_info(self, termination, now):
+        stats = self.core.stats(now)
+        path = self.writer.write_info(stats, self._real_elapsed(), termination)
+        self.writer.close()
+        msg = f"Info file {path} saved."
+        rospy.loginfo("%s", msg)
+        print(msg, flush=True)
+        print("Monitor closed.", flush=True)
+
+    def _on_shutdown(self):
+        with self.lock:
+            if self.finished:
+                return
+            self.finished = True
+            self.termination = "TIMEOUT"
+            try:
+                now = rospy.get_time()
+            except Exception:
+                now = self.core.time_zero or 0.0
+            self._write_info("TIMEOUT", now)
+
+
+def main(argv=None):
+    """Entry point of ``nodes/monitor``: ``monitor <map> <ALG> <N>`` + private params."""
+    argv = rospy.myargv(sys.argv if argv is None else argv)
+    args = argv[1:]
+    rospy.init_node("monitor")
+    prog = "monitor"
+    try:
+        if len(args) != 3:
+            raise MonitorError(f"usage: monitor <map> <ALG> <N> (got {len(args)} arguments)")
+        map_arg = str(rospy.get_param("~map", "") or args[0])
+        alg, n_raw = args[1], args[2]
+        try:
+            n = int(n_raw)
+        except ValueError:
+            raise MonitorError(f"N: expected a positive integer, got '{n_raw}'")
+        if n < 1:
+            raise MonitorError(f"N: team size must be >= 1, got {n}")
+        mon = Monitor(map_arg, alg, n)
+    except MonitorError as e:
+        rospy.logfatal("%s: error: %s", prog, e)
+        sys.stderr.write(f"{prog}: error: {e}\n")
+        return 2
+    return mon.run()
