@@ -101,11 +101,12 @@ def check_idleness_file(tc, text):
 
 def node_pid(node_name):
     """Process id of a node through its XML-RPC API."""
-    import rosnode
+    import rosgraph
     from xmlrpc.client import ServerProxy
-    uri = rosnode.get_api_uri(rospy.get_master(), node_name)
-    if not uri:
-        raise AssertionError(f"node {node_name} is not registered")
+    try:
+        uri = rosgraph.Master(rospy.get_name()).lookupNode(node_name)
+    except rosgraph.MasterError:
+        raise AssertionError(f"node {node_name} is not registered") from None
     code, _msg, pid = ServerProxy(uri).getPid(rospy.get_name())
     if code != 1:
         raise AssertionError(f"getPid of {node_name} failed")

@@ -13,7 +13,8 @@ Private parameters:
     ~tolerance (float, 0.05)   m
     ~map (str, "")             map name/path; needed only with ~abort_vertices
     ~abort_vertices (list of int, [])  goals at these vertices' positions are aborted
-                               after ``~abort_after`` s (the failure path of the agent)
+                               after ``~abort_after`` s, the robot not moving meanwhile
+                               (the failure path of the agent)
     ~abort_after (float, 0.3)  s
 
 Start positions come from /initial_pos (flat x0,y0,x1,y1,...).
@@ -89,11 +90,13 @@ class FakeRobot:
         """Move toward the goal; finish it on arrival or at the abort time."""
         if self.gh is None:
             return
-        if self.abort_at is not None and now >= self.abort_at:
-            self.gh.set_aborted(text="fake_move_base: vertex configured to abort")
-            self.stats["aborted"] += 1
-            self.gh = None
-            self.goal = None
+        if self.abort_at is not None:
+            # an unreachable goal: the robot does not move, move_base gives up
+            if now >= self.abort_at:
+                self.gh.set_aborted(text="fake_move_base: vertex configured to abort")
+                self.stats["aborted"] += 1
+                self.gh = None
+                self.goal = None
             return
         gx, gy = self.goal
         dx, dy = gx - self.x, gy - self.y
