@@ -240,6 +240,7 @@ class Stage2D {
   std::string snapshot_dir_;
   double snapshot_period_ = 0, status_period_ = 2.0, log_period_ = 5.0, render_scale_ = 0;
   int threads_ = 0;
+  int substeps_ = 5;
 
   // laser beam directions (robot laser frame)
   std::vector<double> beam_cos_, beam_sin_;
@@ -353,6 +354,9 @@ void Stage2D::setup() {
   log_period_ = positive("log_period", 5.0);
   render_scale_ = positive("render_scale", 0.0, true);
   threads_ = param<int>("threads", 0);
+  // default: physics sub-steps of at most 10 ms
+  substeps_ = param<int>("physics_substeps", std::max(1, static_cast<int>(std::ceil(step_ / 0.01 - 1e-9))));
+  if (substeps_ < 1) throw InputError("parameter ~physics_substeps must be >= 1");
   if (threads_ < 0) throw InputError("parameter ~threads must be >= 0 (0 = all cores)");
 
   if (!graph_file.empty()) {
@@ -641,13 +645,19 @@ void Stage2D::step_once() {
     double dv = acc_v_ * step_, dw = acc_w_ * step_;
     r.v += std::max(-dv, std::min(dv, tv - r.v));
     r.w += std::max(-dw, std::min(dw, tw - r.w));
-    double a = r.body->GetAngle();
-    if (r.v != 0 || r.w != 0 || r.body->IsAwake()) {
+  }
+  // physics sub-steps keep dynamic-dynamic penetration small (Box2D has no CCD between
+  // two dynamic bodies); the heading is re-applied before each sub-step
+  const float h = static_cast<float>(step_ / substeps_);
+  for (int k = 0; k < substeps_; ++k) {
+    for (Robot& r : robots_) {
+      if (r.v == 0 && r.w == 0 && !r.body->IsAwake()) continue;
+      double a = r.body->GetAngle();
       r.body->SetLinearVelocity(b2Vec2(static_cast<float>(r.v * std::cos(a)), static_cast<float>(r.v * std::sin(a))));
       r.body->SetAngularVelocity(static_cast<float>(r.w));
     }
+    world_->Step(h, 8, 3);
   }
-  world_->Step(static_cast<float>(step_), 8, 3);
   sim_time_ = (++steps_) * step_;
   // measured motion and Stage-like odometry (velocity integration with constant error factors)
   for (Robot& r : robots_) {

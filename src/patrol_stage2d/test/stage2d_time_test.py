@@ -1,0 +1,87 @@
+#!/usr/bin/python3
+"""Pace of the simulator: /clock against wall time for the configured ~speedup, the reported
+real-time factor, periodic snapshots and laser noise."""
+import glob
+import json
+import os
+import sys
+import threading
+import time
+import unittest
+
+import numpy as np
+import rospy
+import rostest
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+
+
+class Stage2DTimeTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("stage2d_time_test")
+        cls.t_start = time.time()
+        cls.lock = threading.Lock()
+        cls.samples = []  # (wall, sim)
+        rospy.Subscriber("/clock", Clock, cls.on_clock, queue_size=1)
+
+    @classmethod
+    def on_clock(cls, m):
+        with cls.lock:
+            cls.samples.append((time.time(), m.clock.to_sec()))
+
+    def measure(self, seconds):
+        end = time.time() + 20
+        while not self.samples and time.time() < end:
+            time.sleep(0.05)
+        self.assertTrue(self.samples, "no /clock")
+        time.sleep(1.0)  # warm-up
+        with self.lock:
+            w0, s0 = self.samples[-1]
+        time.sleep(seconds)
+        with self.lock:
+            w1, s1 = self.samples[-1]
+        return (s1 - s0) / (w1 - w0)
+
+    def test_pace(self):
+        expected = rospy.get_param("~expected_speedup")
+        rtf = self.measure(4.0)
+        if expected > 0:
+            self.assertAlmostEqual(rtf, expected, delta=0.1 * expected,
+                                   msg=f"/clock ran at {rtf:.2f}x wall time, expected {expected}x")
+            st = json.loads(rospy.wait_for_message("/stage2d/status", String, 10).data)
+            self.assertAlmostEqual(st["rtf"], expected, delta=0.1 * expected, msg=str(st))
+        else:
+            # as fast as possible: only a sanity check, not a speed target
+            self.assertGreater(rtf, 1.0, f"unthrottled /clock ran at only {rtf:.2f}x wall time")
+
+    def test_periodic_snapshots(self):
+        d = rospy.get_param("/stage2d/snapshot_dir", "")
+        period = rospy.get_param("/stage2d/snapshot_period", 0.0)
+        if not d or period <= 0:
+            self.skipTest("no periodic snapshots configured")
+        # three periods of sim time
+        rospy.sleep(3 * period + 0.1)
+        files = [f for f in glob.glob(os.path.join(d, "snapshot_*.png"))
+                 if os.path.getmtime(f) >= self.t_start and os.path.getsize(f) > 1000]
+        self.assertGreaterEqual(len(files), 3, f"periodic snapshots in {d}: {files}")
+
+    def test_laser_noise(self):
+        noise = rospy.get_param("/stage2d/laser_noise", 0.0)
+        if noise <= 0:
+            self.skipTest("no laser noise configured")
+        a = rospy.wait_for_message("/robot_0/base_scan", LaserScan, 20)
+        b = rospy.wait_for_message("/robot_0/base_scan", LaserScan, 20)
+        while b.header.stamp == a.header.stamp:
+            b = rospy.wait_for_message("/robot_0/base_scan", LaserScan, 20)
+        ra, rb = np.array(a.ranges), np.array(b.ranges)
+        ok = (ra < a.range_max - 1) & (rb < b.range_max - 1)
+        diff = (ra - rb)[ok]
+        self.assertGreater(len(diff), 500)
+        # difference of two independent N(0, s) draws has std s*sqrt(2)
+        self.assertAlmostEqual(float(np.std(diff)), noise * np.sqrt(2), delta=0.2 * noise * np.sqrt(2))
+
+
+if __name__ == "__main__":
+    rostest.rosrun("patrol_stage2d", "stage2d_time", Stage2DTimeTest, sys.argv)
