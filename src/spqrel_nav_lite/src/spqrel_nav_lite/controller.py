@@ -1,0 +1,155 @@
+"""Local controller: pure pursuit along the global path for a differential-drive robot, with
+acceleration limits, slow-down near obstacles and a swept-corridor collision check against
+laser points. Pure functions of the inputs (no ROS)."""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import normalize_angle
+
+
+@dataclass
+class ControllerParams:
+    max_vel_x: float = 1.0
+    min_vel_x: float = 0.1
+    max_rot_vel: float = 1.0
+    min_in_place_rotational_vel: float = 0.1
+    acc_lim_x: float = 0.5
+    acc_lim_th: float = 0.75
+    robot_radius: float = 0.225
+    lookahead: float = 0.6          # pure-pursuit look-ahead at low speed (m)
+    lookahead_gain: float = 0.4     # extra look-ahead per m/s
+    rotate_in_place_angle: float = 0.8   # heading error above which the robot turns on the spot
+    safety_margin: float = 0.08     # lateral clearance kept to laser points (m)
+    slowdown_distance: float = 0.8  # obstacles closer than this (beyond the radius) slow it
+    xy_goal_tolerance: float = 0.4
+
+
+@dataclass
+class Command:
+    v: float
+    w: float
+    blocked: bool = False        # something in the way: the robot cannot advance
+    done: bool = False           # within goal tolerance
+    index: int = 0               # closest path index
+
+
+def _limit(target, current, acc, dt):
+    step = acc * dt
+    return min(max(target, current - step), current + step)
+
+
+def front_clearance(points_robot, v, w, radius, horizon, step=0.1):
+    """Free distance (m) along the arc (v, w) before the robot disc (inflated ``radius``)
+    touches a point (robot frame, (N, 2)); ``horizon`` if none within it. Negative
+    curvature/backwards driving is handled by the sign of v."""
+    pts = np.asarray(points_robot, dtype=float).reshape(-1, 2)
+    if not len(pts):
+        return horizon
+    direction = 1.0 if v >= 0 else -1.0
+    curv = 0.0 if abs(v) < 1e-6 else w / v
+    # quick reject: points farther than horizon + radius
+    near = pts[np.hypot(pts[:, 0], pts[:, 1]) <= horizon + radius]
+    if not len(near):
+        return horizon
+    n = max(2, int(math.ceil(horizon / step)) + 1)
+    s = np.linspace(0.0, horizon, n) * direction
+    if abs(curv) < 1e-6:
+        xs, ys = s, np.zeros_like(s)
+    else:
+        th = s * curv
+        xs, ys = np.sin(th) / curv, (1.0 - np.cos(th)) / curv
+    d2 = (xs[:, None] - near[None, :, 0]) ** 2 + (ys[:, None] - near[None, :, 1]) ** 2
+    hit = np.nonzero((d2 <= radius * radius).any(axis=1))[0]
+    if not len(hit):
+        return horizon
+    return max(0.0, abs(s[hit[0]]) - step)
+
+
+def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p):
+    """One control step.
+
+    Args:
+        pose: (x, y, yaw) in the path's frame.
+        v_now, w_now: the last command (for the acceleration limits).
+        path: (N, 2) array, last point = goal.
+        start_index: where to start searching the closest path point (monotone progress).
+        points_robot: laser points in the robot frame (N, 2), all obstacles seen now.
+        dt: control period (s).
+        p: ControllerParams.
+    """
+    path = np.asarray(path, dtype=float)
+    x, y, th = pose
+    goal = path[-1]
+    dist_goal = math.hypot(goal[0] - x, goal[1] - y)
+    if dist_goal <= p.xy_goal_tolerance:
+        return Command(0.0, 0.0, done=True, index=len(path) - 1)
+    # closest point, searched forward over a window (paths may loop near themselves)
+    lo = min(max(0, start_index), len(path) - 1)
+    win = path[lo:lo + 200]
+    d = np.hypot(win[:, 0] - x, win[:, 1] - y)
+    idx = lo + int(np.argmin(d))
+    # look-ahead point
+    L = p.lookahead + p.lookahead_gain * max(0.0, v_now)
+    seg = np.hypot(*np.diff(path[idx:], axis=0).T) if idx < len(path) - 1 else np.zeros(0)
+    acc = np.concatenate([[0.0], np.cumsum(seg)])
+    k = int(np.searchsorted(acc, L))
+    target = path[min(idx + k, len(path) - 1)]
+    dx, dy = target[0] - x, target[1] - y
+    c, s = math.cos(th), math.sin(th)
+    tx, ty = c * dx + s * dy, -s * dx + c * dy
+    alpha = math.atan2(ty, tx)
+    ld = max(1e-3, math.hypot(tx, ty))
+    pts = np.asarray(points_robot, dtype=float).reshape(-1, 2)
+    r_safe = p.robot_radius + p.safety_margin
+    if abs(alpha) > p.rotate_in_place_angle:
+        # turn on the spot; check that nothing is inside the footprint while rotating
+        w_t = math.copysign(max(p.min_in_place_rotational_vel,
+                                min(p.max_rot_vel, 1.5 * abs(alpha))), alpha)
+        v_cmd = _limit(0.0, v_now, 4.0 * p.acc_lim_x, dt)
+        w_cmd = _limit(w_t, w_now, p.acc_lim_th, dt)
+        return Command(v_cmd, w_cmd, index=idx)
+    curvature = 2.0 * math.sin(alpha) / ld
+    # speed targets: path curvature, goal approach, obstacles
+    v_t = p.max_vel_x * max(0.2, math.cos(alpha))
+    v_t = min(v_t, math.sqrt(2.0 * p.acc_lim_x * max(0.0, dist_goal - 0.5 * p.xy_goal_tolerance))
+              + p.min_vel_x)
+    if abs(curvature) > 1e-6:
+        v_t = min(v_t, p.max_rot_vel / abs(curvature))
+    horizon = max(0.5, v_t * v_t / (2.0 * p.acc_lim_x) + p.slowdown_distance)
+    free = front_clearance(pts, max(v_t, 0.05), max(v_t, 0.05) * curvature, r_safe, horizon)
+    blocked = False
+    if free < horizon:
+        # speed that still allows stopping before the obstacle, and slow down near it
+        v_stop = math.sqrt(2.0 * p.acc_lim_x * max(0.0, free - 0.05))
+        v_slow = p.max_vel_x * max(0.0, free) / p.slowdown_distance
+        v_t = min(v_t, v_stop, max(p.min_vel_x, v_slow) if free > 0.1 else 0.0)
+        if free <= 0.1:
+            blocked = True
+            v_t = 0.0
+    v_t = max(0.0, v_t)
+    if blocked:
+        v_cmd = 0.0     # emergency stop ignores the deceleration limit
+    else:
+        v_cmd = _limit(v_t, v_now, p.acc_lim_x, dt)
+        if v_t > 0 and v_cmd < p.min_vel_x and v_now < p.min_vel_x:
+            v_cmd = min(v_t, p.min_vel_x)
+    w_t = v_cmd * curvature if v_cmd > 1e-3 else (
+        math.copysign(min(p.max_rot_vel, 1.5 * abs(alpha)), alpha) if not blocked else 0.0)
+    w_t = min(max(w_t, -p.max_rot_vel), p.max_rot_vel)
+    w_cmd = _limit(w_t, w_now, p.acc_lim_th, dt)
+    if v_cmd > 1e-3 and abs(w_cmd) < abs(w_t) - 1e-6:
+        # angular acceleration limit bites: slow down to stay on the arc
+        v_cmd = min(v_cmd, abs(w_cmd / curvature)) if abs(curvature) > 1e-6 else v_cmd
+    return Command(v_cmd, w_cmd, blocked=blocked, index=idx)
+
+
+def rotate_command(w_now, direction, dt, p, points_robot=None):
+    """In-place rotation used by the recovery behaviour."""
+    w_t = math.copysign(p.max_rot_vel * 0.6, direction)
+    return Command(0.0, _limit(w_t, w_now, p.acc_lim_th, dt))
+
+
+def heading_error(pose, target):
+    return normalize_angle(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2])

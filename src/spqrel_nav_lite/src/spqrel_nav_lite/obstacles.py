@@ -1,0 +1,80 @@
+"""Laser scans to points, and the short-term memory of obstacles the map does not explain."""
+import math
+
+import numpy as np
+
+
+def scan_points(ranges, angle_min, angle_increment, range_min, range_max, laser_x=0.0,
+                step=1, max_range=None):
+    """(N, 2) points in the robot frame from a scan (every ``step``-th beam, valid ranges only,
+    optionally only those closer than ``max_range``). Also returns (ranges, angles) used."""
+    r = np.asarray(ranges, dtype=float)[::step]
+    a = angle_min + angle_increment * np.arange(0, len(ranges), step)[:len(r)]
+    ok = np.isfinite(r) & (r >= max(range_min, 1e-3)) & (r < range_max)
+    if max_range is not None:
+        ok &= r <= max_range
+    r, a = r[ok], a[ok]
+    return np.column_stack([laser_x + r * np.cos(a), r * np.sin(a)]), r, a
+
+
+def to_world(points, pose):
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    return np.column_stack([x + c * p[:, 0] - s * p[:, 1], y + s * p[:, 0] + c * p[:, 1]])
+
+
+class ObstacleMemory:
+    """Temporary obstacles: cells (size ``cell``) holding an unexplained laser point, each
+    forgotten ``timeout`` seconds after it was last seen, or when a later beam passes through it
+    (the cell lies well before that beam's end point)."""
+
+    def __init__(self, cell=0.1, timeout=3.0):
+        self.cell = float(cell)
+        self.timeout = float(timeout)
+        self._cells = {}        # (i, j) -> last seen time
+
+    def __len__(self):
+        return len(self._cells)
+
+    def clear(self):
+        self._cells.clear()
+
+    def add(self, points_world, now):
+        if len(points_world):
+            ij = np.floor(np.asarray(points_world) / self.cell).astype(np.int64)
+            for key in set(map(tuple, ij.tolist())):
+                self._cells[key] = now
+
+    def expire(self, now):
+        dead = [k for k, t in self._cells.items() if now - t > self.timeout or t > now + 1.0]
+        for k in dead:
+            del self._cells[k]
+        return bool(dead)
+
+    def clear_seen_through(self, sensor_xy, hits_world, now, margin=0.3):
+        """Forget cells that a beam from ``sensor_xy`` to one of ``hits_world`` crossed (the
+        cell is nearer than the hit by more than ``margin`` and within 2 degrees of the beam)."""
+        if not self._cells or not len(hits_world):
+            return False
+        keys = list(self._cells.keys())
+        c = (np.array(keys, dtype=float) + 0.5) * self.cell
+        sx, sy = sensor_xy
+        dc = np.hypot(c[:, 0] - sx, c[:, 1] - sy)
+        ac = np.arctan2(c[:, 1] - sy, c[:, 0] - sx)
+        h = np.asarray(hits_world, dtype=float)
+        dh = np.hypot(h[:, 0] - sx, h[:, 1] - sy)
+        ah = np.arctan2(h[:, 1] - sy, h[:, 0] - sx)
+        diff = np.abs((ac[:, None] - ah[None, :] + np.pi) % (2 * np.pi) - np.pi)
+        k = np.argmin(diff, axis=1)
+        crossed = (diff[np.arange(len(keys)), k] < math.radians(2.0)) & \
+            (dc < dh[k] - margin) & (now - np.array([self._cells[q] for q in keys]) > 0.0)
+        for q, cr in zip(keys, crossed):
+            if cr:
+                del self._cells[q]
+        return bool(crossed.any())
+
+    def points(self):
+        if not self._cells:
+            return np.zeros((0, 2))
+        return (np.array(list(self._cells.keys()), dtype=float) + 0.5) * self.cell

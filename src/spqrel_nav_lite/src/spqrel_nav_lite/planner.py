@@ -1,0 +1,236 @@
+"""Global planner: Dijkstra over a cost grid derived from the map's distance transform.
+
+The grid is the map downsampled to ``resolution`` (cells keep the clearance of their centre).
+Cells closer than ``robot_radius`` to an obstacle are forbidden; within ``robot_radius +
+inflation_radius`` a soft cost (decaying exponentially with the clearance, like a costmap's
+inflation layer) keeps paths away from walls. One Dijkstra run from the goal gives a navigation
+function for the whole map, so re-planning from a new robot position is a cheap walk along the
+predecessor tree until the obstacle set changes. Temporary obstacles (points in metres) forbid
+the cells within ``robot_radius + obstacle_margin`` of them.
+"""
+import math
+
+import numpy as np
+
+from patrolling_sim.mapio import FREE
+
+
+class PlanningError(Exception):
+    """No plan: the message is the reason (one line)."""
+
+
+class GlobalPlanner:
+    def __init__(self, omap, robot_radius=0.225, inflation_radius=0.66, resolution=0.1,
+                 cost_scaling=3.0, cost_weight=4.0, obstacle_margin=0.1):
+        if resolution <= 0:
+            raise ValueError(f"planner resolution must be positive, got {resolution}")
+        self.map = omap
+        self.k = max(1, int(round(resolution / omap.resolution)))
+        self.res = omap.resolution * self.k
+        self.origin = omap.origin[:2]
+        self.robot_radius = float(robot_radius)
+        self.inflation_radius = float(inflation_radius)
+        self.obstacle_margin = float(obstacle_margin)
+        k = self.k
+        clear = omap.clearance
+        self.h = (omap.height + k - 1) // k
+        self.w = (omap.width + k - 1) // k
+        rows = np.minimum(np.arange(self.h) * k + k // 2, omap.height - 1)
+        cols = np.minimum(np.arange(self.w) * k + k // 2, omap.width - 1)
+        self.clear = clear[np.ix_(rows, cols)].astype(np.float64)
+        self.lethal = self.clear < self.robot_radius
+        d = self.clear - self.robot_radius
+        self.cost = np.where(d < self.inflation_radius,
+                             1.0 + cost_weight * np.exp(-cost_scaling * np.maximum(d, 0.0)), 1.0)
+        self._build_edges()
+        self._obstacles = np.zeros((self.h, self.w), dtype=bool)
+        self._field = None      # (goal_index, dist, pred)
+
+    # -- grid helpers -------------------------------------------------------------------
+    def cell(self, x, y):
+        return (int(math.floor((x - self.origin[0]) / self.res)),
+                int(math.floor((y - self.origin[1]) / self.res)))
+
+    def cell_center(self, i, j):
+        return (self.origin[0] + (i + 0.5) * self.res, self.origin[1] + (j + 0.5) * self.res)
+
+    def in_grid(self, i, j):
+        return 0 <= i < self.w and 0 <= j < self.h
+
+    def blocked_mask(self):
+        return self.lethal | self._obstacles
+
+    def _build_edges(self):
+        h, w = self.h, self.w
+        idx = np.arange(h * w).reshape(h, w)
+        ok = ~self.lethal
+        src, dst, wt = [], [], []
+        for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):     # (col, row) offsets
+            length = math.hypot(di, dj) * self.res
+            j0, j1 = max(0, -dj), h - max(0, dj)
+            i0, i1 = max(0, -di), w - max(0, di)
+            a = idx[j0:j1, i0:i1]
+            b = idx[j0 + dj:j1 + dj, i0 + di:i1 + di]
+            m = ok[j0:j1, i0:i1] & ok[j0 + dj:j1 + dj, i0 + di:i1 + di]
+            if di and dj:   # no corner cutting past a forbidden cell
+                m &= ok[j0 + dj:j1 + dj, i0:i1] & ok[j0:j1, i0 + di:i1 + di]
+            ca = self.cost[j0:j1, i0:i1][m]
+            cb = self.cost[j0 + dj:j1 + dj, i0 + di:i1 + di][m]
+            src.append(a[m])
+            dst.append(b[m])
+            wt.append(length * 0.5 * (ca + cb))
+        self._src = np.concatenate(src).astype(np.int32)
+        self._dst = np.concatenate(dst).astype(np.int32)
+        self._wt = np.concatenate(wt)
+        self._graph = None
+
+    def _csgraph(self):
+        from scipy.sparse import csr_matrix
+        if self._graph is None:
+            n = self.h * self.w
+            if self._obstacles.any():
+                flat = self._obstacles.ravel()
+                m = ~(flat[self._src] | flat[self._dst])
+                s, d, wt = self._src[m], self._dst[m], self._wt[m]
+            else:
+                s, d, wt = self._src, self._dst, self._wt
+            self._graph = csr_matrix((wt, (s, d)), shape=(n, n))
+        return self._graph
+
+    # -- temporary obstacles ---------------------------------------------------------------
+    def set_obstacles(self, points):
+        """Replace the temporary obstacles by ``points`` ((N, 2) metres). Returns True if the
+        forbidden cell set changed (the navigation function is then recomputed lazily)."""
+        mask = np.zeros((self.h, self.w), dtype=bool)
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        if len(pts):
+            r = self.robot_radius + self.obstacle_margin
+            rc = int(math.ceil(r / self.res))
+            off = np.arange(-rc, rc + 1)
+            oi, oj = np.meshgrid(off, off)
+            keep = np.hypot(oi, oj) * self.res <= r + 0.5 * self.res
+            oi, oj = oi[keep], oj[keep]
+            ci = np.floor((pts[:, 0] - self.origin[0]) / self.res).astype(int)
+            cj = np.floor((pts[:, 1] - self.origin[1]) / self.res).astype(int)
+            ii = (ci[:, None] + oi[None, :]).ravel()
+            jj = (cj[:, None] + oj[None, :]).ravel()
+            v = (ii >= 0) & (ii < self.w) & (jj >= 0) & (jj < self.h)
+            mask[jj[v], ii[v]] = True
+        if np.array_equal(mask, self._obstacles):
+            return False
+        self._obstacles = mask
+        self._graph = None
+        self._field = None
+        return True
+
+    def clear_obstacles(self):
+        return self.set_obstacles(np.zeros((0, 2)))
+
+    # -- planning -----------------------------------------------------------------------------
+    def _nearest_open(self, i, j, max_dist, blocked):
+        """Nearest non-blocked cell to (i, j) within max_dist metres, or None."""
+        rc = int(math.ceil(max_dist / self.res))
+        i0, i1 = max(0, i - rc), min(self.w, i + rc + 1)
+        j0, j1 = max(0, j - rc), min(self.h, j + rc + 1)
+        if i0 >= i1 or j0 >= j1:
+            return None
+        sub = ~blocked[j0:j1, i0:i1]
+        jj, ii = np.nonzero(sub)
+        if not len(ii):
+            return None
+        d = np.hypot(ii + i0 - i, jj + j0 - j)
+        k = int(np.argmin(d))
+        if d[k] * self.res > max_dist:
+            return None
+        return int(ii[k] + i0), int(jj[k] + j0)
+
+    def check_goal(self, gx, gy, tolerance):
+        """(i, j) plan cell for a goal, or PlanningError with the reason."""
+        state = self.map.cell_state(gx, gy)
+        if state == "out-of-map":
+            raise PlanningError(f"goal ({gx:.2f}, {gy:.2f}) is outside the map")
+        if state != "free":
+            raise PlanningError(f"goal ({gx:.2f}, {gy:.2f}) is inside an obstacle "
+                                f"({state} map cell)")
+        i, j = self.cell(gx, gy)
+        blocked = self.blocked_mask()
+        if self.in_grid(i, j) and not blocked[j, i]:
+            return i, j
+        c = self._nearest_open(i, j, tolerance, blocked)
+        if c is None:
+            raise PlanningError(f"goal ({gx:.2f}, {gy:.2f}) is closer than the robot radius "
+                                f"{self.robot_radius} m to obstacles, with no free cell within "
+                                f"the goal tolerance {tolerance} m")
+        return c
+
+    def plan(self, start, goal, tolerance=0.4, start_search=1.0):
+        """Path [(x, y), ...] from start to goal (metres), first point = start cell.
+
+        Raises:
+            PlanningError: goal outside the map / in an obstacle / unreachable.
+        """
+        gi, gj = self.check_goal(goal[0], goal[1], tolerance)
+        blocked = self.blocked_mask()
+        si, sj = self.cell(start[0], start[1])
+        if not self.in_grid(si, sj) or blocked[sj, si]:
+            c = self._nearest_open(si, sj, start_search, blocked)
+            if c is None:
+                raise PlanningError(f"robot at ({start[0]:.2f}, {start[1]:.2f}) is inside an "
+                                    f"obstacle with no free cell within {start_search} m")
+            si, sj = c
+        g = gj * self.w + gi
+        if self._field is None or self._field[0] != g:
+            from scipy.sparse.csgraph import dijkstra
+            dist, pred = dijkstra(self._csgraph(), directed=False, indices=g,
+                                  return_predecessors=True)
+            self._field = (g, dist, pred)
+        _, dist, pred = self._field
+        s = sj * self.w + si
+        if not np.isfinite(dist[s]):
+            raise PlanningError(f"no path from ({start[0]:.2f}, {start[1]:.2f}) to goal "
+                                f"({goal[0]:.2f}, {goal[1]:.2f})")
+        cells = [s]
+        while cells[-1] != g:
+            cells.append(int(pred[cells[-1]]))
+        cells = np.array(cells)
+        xs = self.origin[0] + (cells % self.w + 0.5) * self.res
+        ys = self.origin[1] + (cells // self.w + 0.5) * self.res
+        path = np.column_stack([xs, ys])
+        path[-1] = goal if self.map.is_free(*goal) and not blocked[gj, gi] else path[-1]
+        return path
+
+    def path_cost(self, start):
+        """Navigation-function value (weighted metres) at a position, inf if unreachable or no
+        field computed."""
+        if self._field is None:
+            return math.inf
+        i, j = self.cell(*start)
+        if not self.in_grid(i, j):
+            return math.inf
+        return float(self._field[1][j * self.w + i])
+
+
+def path_length(path):
+    p = np.asarray(path, dtype=float)
+    if len(p) < 2:
+        return 0.0
+    return float(np.hypot(*np.diff(p, axis=0).T).sum())
+
+
+def path_blocked(path, points, radius, from_index=0, horizon=None):
+    """Index of the first path point (from ``from_index``, over ``horizon`` metres) that lies
+    within ``radius`` of any of ``points``, or None."""
+    p = np.asarray(path, dtype=float)[from_index:]
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if not len(p) or not len(pts):
+        return None
+    if horizon is not None:
+        seg = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))])
+        p = p[seg <= horizon]
+    lo, hi = p.min(axis=0) - radius, p.max(axis=0) + radius
+    pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+    if not len(pts):
+        return None
+    d2 = ((p[:, None, :] - pts[None, :, :]) ** 2).sum(axis=2)
+    hit = np.nonzero((d2 <= radius * radius).any(axis=1))[0]
+    return int(hit[0]) + from_index if len(hit) else None

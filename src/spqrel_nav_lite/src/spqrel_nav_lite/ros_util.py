@@ -1,0 +1,143 @@
+"""Helpers shared by the ROS nodes (imports rospy; the other modules do not)."""
+import os
+import sys
+
+import numpy as np
+import rospy
+
+from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.mapio import OccupancyMap, load_map
+
+from .geometry import quaternion_from_yaw, yaw_from_quaternion
+
+
+def fatal(message, code=2):
+    """One-line error on stderr (and rosout), then exit non-zero."""
+    name = rospy.get_name() if rospy.core.is_initialized() else os.path.basename(sys.argv[0])
+    line = f"{name}: error: {' '.join(str(message).split())}"
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
+    if rospy.core.is_initialized():
+        rospy.logfatal(line)
+        rospy.signal_shutdown(line)
+    os._exit(code)
+
+
+def param(name, default, kind=float, check=None, what=None):
+    """Read a private parameter, validate its type and range (bad -> fatal one-liner)."""
+    v = rospy.get_param("~" + name, default)
+    try:
+        if kind is bool:
+            if isinstance(v, str) and v.lower() in ("true", "false"):
+                v = v.lower() == "true"
+            elif not isinstance(v, (bool, int)):
+                raise ValueError
+            v = bool(v)
+        elif kind in (float, int):
+            if isinstance(v, bool):
+                raise ValueError
+            v = kind(v)
+            if kind is int and float(rospy.get_param("~" + name, default)) != v:
+                raise ValueError
+            if not np.isfinite(v):
+                raise ValueError
+        else:
+            v = kind(v)
+    except (TypeError, ValueError):
+        fatal(f"parameter ~{name}: expected {kind.__name__}, got {v!r}")
+    if check is not None and not check(v):
+        fatal(f"parameter ~{name}: {v!r} is invalid ({what or 'out of range'})")
+    return v
+
+
+def namespace_prefix():
+    """'robot_0/' for a node in /robot_0, '' in the global namespace."""
+    ns = rospy.get_namespace().strip("/")
+    return ns + "/" if ns else ""
+
+
+def strip_slash(frame):
+    return frame.lstrip("/")
+
+
+def pose_of(msg_pose):
+    """(x, y, yaw) of a geometry_msgs/Pose."""
+    q = msg_pose.orientation
+    return (msg_pose.position.x, msg_pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+
+
+def fill_pose(msg_pose, pose):
+    msg_pose.position.x, msg_pose.position.y = pose[0], pose[1]
+    msg_pose.position.z = 0.0
+    q = quaternion_from_yaw(pose[2])
+    msg_pose.orientation.x, msg_pose.orientation.y = q[0], q[1]
+    msg_pose.orientation.z, msg_pose.orientation.w = q[2], q[3]
+    return msg_pose
+
+
+def transform_msg(pose, stamp, parent, child):
+    from geometry_msgs.msg import TransformStamped
+    t = TransformStamped()
+    t.header.stamp = stamp
+    t.header.frame_id = parent
+    t.child_frame_id = child
+    t.transform.translation.x, t.transform.translation.y = pose[0], pose[1]
+    q = quaternion_from_yaw(pose[2])
+    r = t.transform.rotation
+    r.x, r.y, r.z, r.w = q
+    return t
+
+
+def grid_to_map(msg):
+    """OccupancyMap from a nav_msgs/OccupancyGrid."""
+    info = msg.info
+    data = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
+    data = np.where(data < 0, -1, np.where(data >= 65, 100, np.where(data <= 19, 0, -1)))
+    yaw = yaw_from_quaternion(info.origin.orientation.x, info.origin.orientation.y,
+                              info.origin.orientation.z, info.origin.orientation.w)
+    return OccupancyMap(data.astype(np.int8), info.resolution,
+                        (info.origin.position.x, info.origin.position.y, yaw))
+
+
+def map_to_grid(omap, frame_id="map", stamp=None):
+    from nav_msgs.msg import OccupancyGrid
+    msg = OccupancyGrid()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = stamp if stamp is not None else rospy.Time(0)
+    msg.info.map_load_time = msg.header.stamp
+    msg.info.resolution = omap.resolution
+    msg.info.width, msg.info.height = omap.width, omap.height
+    fill_pose(msg.info.origin, omap.origin)
+    msg.data = omap.data.ravel().tolist()
+    return msg
+
+
+def get_map():
+    """The map for a per-robot node: from the yaml in ``~map_yaml`` if set, else the first
+    message on ``~map_topic`` (default ``/map``), else the ``static_map`` service."""
+    yaml_path = rospy.get_param("~map_yaml", "")
+    if yaml_path:
+        try:
+            return load_map(yaml_path)
+        except PatrolInputError as e:
+            fatal(f"parameter ~map_yaml: {e}")
+    from nav_msgs.msg import OccupancyGrid
+    from nav_msgs.srv import GetMap
+    topic = rospy.get_param("~map_topic", "/map")
+    service = rospy.get_param("~map_service", "/static_map")
+    wait = float(rospy.get_param("~map_wait", 60.0))
+    deadline = rospy.get_time() + wait
+    while not rospy.is_shutdown():
+        try:
+            return grid_to_map(rospy.wait_for_message(topic, OccupancyGrid, timeout=2.0))
+        except rospy.ROSException:
+            pass
+        try:
+            rospy.wait_for_service(service, timeout=0.5)
+            return grid_to_map(rospy.ServiceProxy(service, GetMap)().map)
+        except (rospy.ROSException, rospy.ServiceException):
+            pass
+        if rospy.get_time() > deadline:
+            fatal(f"no map on {topic} or {service} after {wait:.0f} s (set ~map_yaml or start "
+                  f"map_server)")
+    sys.exit(0)
