@@ -568,7 +568,6 @@ def main(argv=None):
             raise AgentError(f"~params: expected a dictionary, got {params!r}")
         agent = PatrolAgent(map_arg, robot_id, alg, team_size, seed, params)
     except AgentError as e:
-        rospy.logfatal("%s: error: %s", prog, e)
         sys.stderr.write(f"{prog}: error: {e}\n")
         return e.code
     return agent.run()

@@ -177,7 +177,6 @@ def main():
     try:
         FakeMoveBase()
     except (ValueError, KeyError, PatrolInputError) as e:
-        rospy.logfatal("fake_move_base: error: %s", e)
         sys.stderr.write(f"fake_move_base: error: {e}\n")
         return 2
     rospy.spin()

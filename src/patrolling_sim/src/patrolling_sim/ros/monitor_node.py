@@ -300,7 +300,6 @@ def main(argv=None):
             raise MonitorError(f"N: team size must be >= 1, got {n}")
         mon = Monitor(map_arg, alg, n)
     except MonitorError as e:
-        rospy.logfatal("%s: error: %s", prog, e)
         sys.stderr.write(f"{prog}: error: {e}\n")
         return 2
     return mon.run()
