@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <memory>
 #include <random>
@@ -502,6 +503,9 @@ void Stage2D::setup() {
   render_scale_ = s;
   cv::resize(map_.render_base(), base_img_, cv::Size(), s, s, cv::INTER_NEAREST);
   if (gui_) {
+    const char* disp = std::getenv("DISPLAY");
+    if (!disp || !*disp)
+      throw InputError("parameter ~gui is true but DISPLAY is not set (run headless with gui:=false, or under xvfb-run)");
     try {
       cv::namedWindow("stage2d", cv::WINDOW_AUTOSIZE);
     } catch (const cv::Exception& e) {
