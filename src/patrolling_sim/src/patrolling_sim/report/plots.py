@@ -114,11 +114,14 @@ def _nice_ceil(x):
     return float(10 ** (k + 1))
 
 
-def histogram_bins(values):
-    """Bin edges from 0 and their width: the Freedman-Diaconis width of the pooled samples
-    rounded up to a 'nice' value (1, 2, 5, 10, 20, ... s), at least 1 s, at most 300 bins."""
+def histogram_bins(values, top=None):
+    """Bin edges from 0 and their width: the Freedman-Diaconis width of the samples
+    rounded up to a 'nice' value (1, 2, 5, 10, 20, ... s), at least 1 s, at most 300 bins
+    up to ``top`` (default: the largest sample)."""
     v = np.asarray(values, dtype=float)
-    top = max(1.0, float(v.max())) if v.size else 1.0
+    if top is None:
+        top = float(v.max()) if v.size else 1.0
+    top = max(1.0, float(top))
     width = 1.0
     if v.size > 1:
         q75, q25 = np.percentile(v, [75, 25])
@@ -130,24 +133,42 @@ def histogram_bins(values):
     return np.arange(0.0, math.floor(top / width) * width + 2 * width, width), width
 
 
+TAIL_QUANTILE = 99.5
+
+
 def histogram_figure(title, series, colors):
-    """series: list of (label, algorithm, samples array)."""
-    fig = Figure(figsize=(9.0, 4.5))
-    ax = fig.add_subplot(1, 1, 1)
-    pooled = [s for _, _, s in series if len(s)]
-    bins, width = histogram_bins(np.concatenate(pooled) if pooled else [])
-    for label, alg, s in series:
-        if not len(s):
-            continue
-        w = np.full(len(s), 1.0 / len(s))
-        ax.hist(s, bins=bins, weights=w, histtype="step", lw=1.6, color=colors[alg],
-                label=f"{label} ({len(s)} samples)")
-    ax.set_xlabel(f"{IDL_LABEL}  (bins of {width:g} s)")
-    ax.set_ylabel("Fraction of samples")
-    ax.set_title(title)
-    ax.set_xlim(0, bins[-1])
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    """series: list of (label, algorithm, samples array). One panel per series (shared
+    axes); the x axis stops at the 99.5th percentile of all samples, the number of samples
+    beyond is written in each panel."""
+    series = [s for s in series if len(s[2])] or series[:1]
+    k = len(series)
+    fig = Figure(figsize=(9.0, 1.2 + 1.6 * k))
+    pooled = np.concatenate([s for _, _, s in series]) if series and len(series[0][2]) else np.array([])
+    cut = float(np.percentile(pooled, TAIL_QUANTILE)) if pooled.size else 1.0
+    full = float(pooled.max()) if pooled.size else 1.0
+    bins, width = histogram_bins(pooled[pooled <= cut] if pooled.size else pooled,
+                                 top=cut if cut < full else full)
+    axes = []
+    for i, (label, alg, s) in enumerate(series):
+        ax = fig.add_subplot(k, 1, i + 1, sharex=axes[0] if axes else None,
+                             sharey=axes[0] if axes else None)
+        axes.append(ax)
+        if len(s):
+            w = np.full(len(s), 1.0 / len(s))
+            ax.hist(s, bins=bins, weights=w, color=colors[alg], alpha=0.85)
+            beyond = int((s > bins[-1]).sum())
+            note = f"{len(s)} samples, mean {np.mean(s):.1f} s"
+            if beyond:
+                note += f"; {beyond} beyond {bins[-1]:g} s (max {np.max(s):.1f} s)"
+            ax.text(0.99, 0.9, note, transform=ax.transAxes, ha="right", va="top", fontsize=8)
+        ax.set_title(label, fontsize=9, loc="left")
+        ax.set_ylabel("Fraction of\nsamples", fontsize=8)
+        ax.grid(alpha=0.3)
+        if i < k - 1:
+            ax.tick_params(labelbottom=False)
+    axes[-1].set_xlabel(f"{IDL_LABEL}  (bins of {width:g} s)")
+    axes[0].set_xlim(0, bins[-1])
+    fig.suptitle(title)
     fig.tight_layout()
     return fig
 
