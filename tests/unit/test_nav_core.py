@@ -1,0 +1,293 @@
+"""Unit tests of spqrel_nav_lite's pure logic: geometry, planner, controller, particle filter,
+obstacle memory (no ROS master)."""
+import math
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+from patrolling_sim.mapio import OccupancyMap, load_map
+from spqrel_nav_lite.controller import ControllerParams, compute_command, front_clearance
+from spqrel_nav_lite.geometry import PoseHistory, compose, inverse, normalize_angle, relative
+from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world
+from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter
+from spqrel_nav_lite.planner import GlobalPlanner, PlanningError, path_blocked, path_length
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+
+
+def room(w=10.0, h=6.0, res=0.05, wall_x=None, gap=None):
+    """A walled rectangle; optional vertical wall at wall_x with a gap (y0, y1)."""
+    W, H = int(w / res), int(h / res)
+    d = np.zeros((H, W), dtype=np.int8)
+    d[:2, :] = d[-2:, :] = 100
+    d[:, :2] = d[:, -2:] = 100
+    if wall_x is not None:
+        i = int(wall_x / res)
+        d[:, i:i + 2] = 100
+        if gap is not None:
+            d[int(gap[0] / res):int(gap[1] / res), i:i + 2] = 0
+    return OccupancyMap(d, res)
+
+
+# -- geometry ------------------------------------------------------------------------------------
+def test_compose_inverse_roundtrip():
+    a, b = (1.0, 2.0, 0.7), (-0.5, 0.3, -2.0)
+    c = compose(a, b)
+    back = relative(a, c)
+    assert np.allclose(back[:2], b[:2]) and abs(normalize_angle(back[2] - b[2])) < 1e-9
+    ident = compose(a, inverse(a))
+    assert np.allclose(ident, (0, 0, 0), atol=1e-12)
+
+
+def test_pose_history_interpolates_and_clamps():
+    h = PoseHistory(horizon=10)
+    h.add(0.0, (0.0, 0.0, 0.0))
+    h.add(1.0, (1.0, 2.0, 0.5))
+    assert np.allclose(h.at(0.5), (0.5, 1.0, 0.25))
+    assert h.at(5.0) == (1.0, 2.0, 0.5) and h.at(-1.0) == (0.0, 0.0, 0.0)
+
+
+def test_odom_correction_recovers_truth():
+    """map->odom = truth o odom^-1, composed with odom again, gives the truth (what
+    fake_localization publishes and move_base relies on)."""
+    truth, odom = (3.0, 4.0, 1.0), (0.7, -0.2, 0.4)
+    corr = compose(truth, inverse(odom))
+    assert np.allclose(compose(corr, odom), truth)
+
+
+# -- planner -----------------------------------------------------------------------------------
+def test_planner_goes_through_the_gap():
+    m = room(wall_x=5.0, gap=(4.0, 5.5))
+    p = GlobalPlanner(m, resolution=0.1)
+    path = p.plan((2.0, 1.0), (8.0, 1.0))
+    assert np.hypot(*(path[-1] - (8.0, 1.0))) < 1e-9
+    # it must pass through the gap: some point near x=5 with y in the gap
+    near_wall = path[np.abs(path[:, 0] - 5.05) < 0.15]
+    assert len(near_wall) and np.all((near_wall[:, 1] > 4.0) & (near_wall[:, 1] < 5.5))
+    # never closer than the robot radius to a wall
+    assert min(m.clearance_at(x, y) for x, y in path) >= 0.225 - 0.05
+    assert path_length(path) > 6.0 + 2 * 2.0     # detour through the gap
+
+
+def test_planner_keeps_away_from_walls_when_it_can():
+    m = room(w=10, h=4)
+    p = GlobalPlanner(m, resolution=0.1)
+    path = p.plan((1.0, 0.6), (9.0, 0.6))
+    mid = path[len(path) // 2]
+    assert mid[1] > 0.9      # soft inflation cost pulls the path off the wall
+
+
+def test_planner_bad_goals():
+    m = room(wall_x=5.0)     # no gap: the right half is unreachable
+    p = GlobalPlanner(m)
+    with pytest.raises(PlanningError, match="outside the map"):
+        p.plan((2.0, 2.0), (20.0, 2.0))
+    with pytest.raises(PlanningError, match="inside an obstacle"):
+        p.plan((2.0, 2.0), (5.06, 2.0))
+    with pytest.raises(PlanningError, match="no path"):
+        p.plan((2.0, 2.0), (8.0, 2.0))
+
+
+def test_planner_goal_near_wall_snaps_within_tolerance():
+    m = room()
+    p = GlobalPlanner(m)
+    path = p.plan((5.0, 3.0), (5.0, 0.2))        # free cell but within the robot radius
+    assert math.hypot(path[-1][0] - 5.0, path[-1][1] - 0.2) <= 0.4
+
+
+def test_planner_temporary_obstacle_blocks_and_clears():
+    m = room(w=10, h=2.0)                         # a 1.8 m corridor
+    p = GlobalPlanner(m)
+    base = p.plan((1.0, 1.0), (9.0, 1.0))
+    wall = np.array([[5.0, y] for y in np.arange(0.1, 1.95, 0.05)])
+    assert p.set_obstacles(wall)
+    with pytest.raises(PlanningError, match="no path"):
+        p.plan((1.0, 1.0), (9.0, 1.0))
+    assert path_blocked(base, wall, 0.225) is not None
+    assert p.clear_obstacles()
+    assert len(p.plan((1.0, 1.0), (9.0, 1.0))) == len(base)
+
+
+def test_planner_on_shipped_map_all_vertices_reachable():
+    from patrolling_sim.graph import PatrolGraph
+    m = load_map(os.path.join(ROOT, "maps", "cumberland", "cumberland.yaml"))
+    g = PatrolGraph.load(os.path.join(ROOT, "maps", "cumberland", "cumberland.graph"))
+    p = GlobalPlanner(m)
+    for v in range(1, g.n):
+        path = p.plan(g.pos[v], g.pos[0])
+        assert path_length(path) >= math.dist(g.pos[v], g.pos[0]) - 0.4
+
+
+# -- controller -----------------------------------------------------------------------------
+def straight_path(x0=0.0, x1=10.0):
+    return np.column_stack([np.arange(x0, x1 + 1e-9, 0.1), np.zeros(int(round((x1 - x0) / 0.1)) + 1)])
+
+
+def simulate(path, pose, points_world=np.zeros((0, 2)), steps=400, dt=0.1, p=None):
+    p = p or ControllerParams()
+    v = w = 0.0
+    idx = 0
+    trace = []
+    for _ in range(steps):
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        rel = points_world - pose[:2]
+        pts = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
+        cmd = compute_command(pose, v, w, path, idx, pts, dt, p)
+        # accelerate within acc_lim_x (a start may jump to min_vel_x); braking may be harder
+        assert cmd.v - v <= max(p.acc_lim_x * dt, p.min_vel_x) + 1e-9
+        assert abs(cmd.v) <= p.max_vel_x + 1e-9 and abs(cmd.w) <= p.max_rot_vel + 1e-9
+        v, w, idx = cmd.v, cmd.w, cmd.index
+        trace.append((tuple(pose), cmd))
+        if cmd.done:
+            break
+        pose = np.array([pose[0] + v * dt * math.cos(pose[2]), pose[1] + v * dt * math.sin(pose[2]),
+                         normalize_angle(pose[2] + w * dt)])
+    return pose, trace
+
+
+def test_controller_reaches_goal_with_limits():
+    pose, trace = simulate(straight_path(), np.array([0.0, 0.3, 0.5]))
+    assert trace[-1][1].done
+    assert math.hypot(pose[0] - 10.0, pose[1]) <= 0.4
+    assert max(t[1].v for t in trace) > 0.9       # reaches cruise speed
+    assert len(trace) < 200                        # ~10 m at <= 1 m/s with ramps
+
+
+def test_controller_turns_in_place_when_facing_away():
+    _, trace = simulate(straight_path(), np.array([0.0, 0.0, math.pi]), steps=5)
+    assert all(abs(c.v) < 0.06 for _, c in trace) and abs(trace[-1][1].w) > 0.1
+
+
+def test_controller_stops_before_an_unmapped_obstacle():
+    wall = np.array([[4.0, y] for y in np.arange(-1.0, 1.01, 0.05)])
+    pose, trace = simulate(straight_path(), np.array([0.0, 0.0, 0.0]), wall, steps=300)
+    assert not trace[-1][1].done
+    assert any(c.blocked for _, c in trace)
+    assert pose[0] < 4.0 - 0.225                  # never touched it
+
+
+def test_front_clearance_straight_and_empty():
+    assert front_clearance(np.zeros((0, 2)), 1.0, 0.0, 0.3, 2.0) == 2.0
+    d = front_clearance(np.array([[1.5, 0.0]]), 1.0, 0.0, 0.3, 3.0)
+    assert 1.0 <= d <= 1.25
+
+
+# -- particle filter --------------------------------------------------------------------------
+def fake_scan(m, pose, angles, laser_x=0.15, rmax=20.0):
+    """Exact-ish ray cast by small steps (test helper)."""
+    sx, sy = pose[0] + laser_x * math.cos(pose[2]), pose[1] + laser_x * math.sin(pose[2])
+    out = []
+    for a in angles:
+        t = 0.0
+        while t < rmax:
+            x, y = sx + t * math.cos(pose[2] + a), sy + t * math.sin(pose[2] + a)
+            if m.cell_state(x, y) != "free":
+                break
+            t += m.resolution / 2
+        out.append(t)
+    return np.array(out)
+
+
+def asym_room():
+    m = room(w=8, h=5, wall_x=5.0, gap=(0.1, 1.5))
+    d = m.data.copy()
+    d[60:64, 20:60] = 100                    # a bar that breaks symmetries
+    return OccupancyMap(d, m.resolution)
+
+
+def test_kld_limit_bounds():
+    field = LikelihoodField(room())
+    pf = ParticleFilter(field, 100, 500)
+    assert pf.kld_limit(1) == 100
+    assert pf.kld_limit(2) == 100
+    assert pf.kld_limit(1000) == 500
+    assert pf.kld_limit(20) < pf.kld_limit(60)
+
+
+def test_particle_filter_converges_from_offset():
+    m = asym_room()
+    field = LikelihoodField(m)
+    rng = np.random.default_rng(3)
+    pf = ParticleFilter(field, rng=rng)
+    truth = np.array([2.0, 2.0, 0.3])
+    pf.init_gaussian((2.4, 1.7, 0.6))            # 0.5 m / 0.3 rad off
+    angles = np.linspace(-2.35, 2.35, 30)
+    odom = (0.0, 0.0, 0.0)
+    for k in range(25):
+        # drive a small loop; odometry is exact here, the motion model adds the noise
+        step = (0.2, 0.0, 0.15 if k % 10 < 5 else -0.15)
+        new_truth = np.array(compose(tuple(truth), step))
+        if m.clearance_at(*new_truth[:2]) < 0.3:
+            step = (0.0, 0.0, 0.6)
+            new_truth = np.array(compose(tuple(truth), step))
+        new_odom = compose(odom, step)
+        pf.predict(odom, new_odom)
+        odom, truth = new_odom, new_truth
+        pf.update(fake_scan(m, truth, angles), angles)
+        pf.resample()
+    est, cov = pf.estimate()
+    assert math.hypot(est[0] - truth[0], est[1] - truth[1]) < 0.2
+    assert abs(normalize_angle(est[2] - truth[2])) < 0.15
+    assert 100 <= len(pf.particles) <= 500
+
+
+def test_motion_model_spread_grows_with_alpha():
+    field = LikelihoodField(room())
+    spreads = []
+    for alpha in (0.01, 0.2):
+        pf = ParticleFilter(field, alphas=(alpha,) * 4, rng=np.random.default_rng(0))
+        pf.init_gaussian((3, 3, 0), 0, 0, 0)
+        pf.predict((0, 0, 0), (1.0, 0.0, 0.0))
+        assert abs(pf.particles[:, 0].mean() - 4.0) < 0.15
+        assert abs(pf.particles[:, 1].mean() - 3.0) < 0.1
+        spreads.append(pf.particles[:, 0].std() + pf.particles[:, 1].std())
+    assert spreads[1] > 2 * spreads[0]
+
+
+def test_low_variance_resampling_keeps_heavy_particles():
+    field = LikelihoodField(room())
+    pf = ParticleFilter(field, 100, 500, rng=np.random.default_rng(1))
+    pf.init_uniform()
+    pf.weights = np.zeros(len(pf.particles))
+    pf.weights[7] = 1.0
+    keep = pf.particles[7].copy()
+    pf.resample()
+    assert np.allclose(pf.particles, keep) and len(pf.particles) == 100
+    assert field.is_free(pf.particles[:, 0], pf.particles[:, 1]).all()
+
+
+# -- obstacles ---------------------------------------------------------------------------------
+def test_scan_points_and_memory_expiry():
+    pts, r, a = scan_points([1.0, np.inf, 25.0, 2.0], -0.5, 0.5, 0.05, 20.0, laser_x=0.15)
+    assert len(pts) == 2 and np.allclose(pts[0], (0.15 + math.cos(-0.5), math.sin(-0.5)))
+    w = to_world(pts, (1.0, 1.0, math.pi / 2))
+    assert np.allclose(w[0], (1.0 - math.sin(-0.5), 1.0 + 0.15 + math.cos(-0.5)))
+    mem = ObstacleMemory(cell=0.1, timeout=2.0)
+    mem.add(np.array([[1.0, 1.0], [1.01, 1.02], [3.0, 3.0]]), now=0.0)
+    assert len(mem) == 2
+    mem.add(np.array([[3.0, 3.0]]), now=1.5)
+    mem.expire(2.5)
+    assert len(mem) == 1 and np.allclose(mem.points()[0], (3.05, 3.05))
+    # a later beam through the cell to a farther hit clears it
+    assert mem.clear_seen_through((0.0, 0.0), np.array([[6.0, 6.0]]), now=2.6)
+    assert len(mem) == 0
+
+
+# -- command line -----------------------------------------------------------------------------
+def test_map_server_bad_yaml_one_line_error(tmp_path):
+    exe = os.path.join(ROOT, "src", "spqrel_nav_lite", "nodes", "map_server")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    for args in ([str(bad)], [str(tmp_path / "none.yaml")], []):
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [os.path.join(ROOT, "src", p, "src") for p in ("patrolling_sim", "spqrel_nav_lite")]
+            + [os.environ.get("PYTHONPATH", "")]))
+        proc = subprocess.run(["/usr/bin/python3", exe] + args, capture_output=True, text=True,
+                              env=env, timeout=60)
+        assert proc.returncode != 0
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("map_server: error:"), proc.stderr
+        if args:
+            assert os.path.basename(args[0]) in lines[0]
