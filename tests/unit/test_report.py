@@ -317,8 +317,9 @@ def test_unknown_map_still_reports(tmp_path):
     root = str(tmp_path / "r")
     write_run(root, "nosuchmap", 1, "CR", "h", "20260101_000000", random.Random(2), 10, 30)
     out = str(tmp_path / "o")
-    proc = run_report([root, "--out", out])
+    proc = run_report([root, "--out", out, "--no-run-plots"])
     assert proc.returncode == 0, proc.stderr
     assert "nosuchmap" in proc.stderr and "no heat map" in proc.stderr
     assert not [f for f in os.listdir(out) if f.startswith("heatmap_")]
     assert os.path.exists(os.path.join(out, "report.html"))
+    assert not os.path.exists(os.path.join(out, "runs"))   # --no-run-plots

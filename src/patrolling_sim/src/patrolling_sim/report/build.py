@@ -9,7 +9,7 @@ Output files in ``out_dir``:
 - ``pairwise_pvalues.csv`` Kruskal-Wallis and pairwise Mann-Whitney/Holm results (header
   only when no group has two algorithms);
 - ``boxplot_<map>.png``, ``heatmap_<map>_<N>[...].png``, ``histogram_<map>_<N>[...].png``,
-  ``runs/time_<run>.png``.
+  ``runs/time_<run>.png`` (unless ``run_plots`` is false).
 """
 import datetime
 import logging
@@ -52,7 +52,7 @@ def _load_map(name, cache, warnings):
     return cache[name]
 
 
-def build_report(dirs, out_dir, title=None):
+def build_report(dirs, out_dir, title=None, run_plots=True):
     """Write the report for the runs under ``dirs`` into ``out_dir``.
 
     Returns:
@@ -66,7 +66,7 @@ def build_report(dirs, out_dir, title=None):
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise PatrolInputError(f"argument --out: '{out_dir}' exists and is not a directory")
     try:
-        os.makedirs(os.path.join(out_dir, "runs"), exist_ok=True)
+        os.makedirs(os.path.join(out_dir, "runs") if run_plots else out_dir, exist_ok=True)
     except OSError as e:
         raise PatrolInputError(f"argument --out: cannot create '{out_dir}' ({e.strerror})") from None
     title = title or "Patrolling results"
@@ -150,7 +150,7 @@ def build_report(dirs, out_dir, title=None):
         heat_figs.append((path, f"Per-vertex average idleness (pooled samples of all runs), {desc}"))
 
     used = set()
-    for _, r in per_run.iterrows():
+    for _, r in (per_run.iterrows() if run_plots else ()):
         run = by_prefix[r["prefix"]]
         base = plots.slug("time", r["map"], r["N"], r["algorithm"], r["hostname"],
                           os.path.basename(r["prefix"]))
@@ -236,9 +236,10 @@ def build_report(dirs, out_dir, title=None):
                       str(r["complete_cycles"]), f"{r['interference_rate']:.2f}",
                       f"{r['sim_duration']:.1f}", r["termination"]])
     sections.append(("Runs", H.table(rheader, rrows, text_cols=(0, 1, 10))))
-    sections.append(("Idleness over time (one figure per run)",
-                     "<details open><summary>show / hide</summary>" +
-                     "".join(H.image(p, c) for p, c in time_figs) + "</details>"))
+    if run_plots:
+        sections.append(("Idleness over time (one figure per run)",
+                         "<details open><summary>show / hide</summary>" +
+                         "".join(H.image(p, c) for p, c in time_figs) + "</details>"))
 
     html_path = os.path.join(out_dir, "report.html")
     with open(html_path, "w", encoding="utf-8") as f:

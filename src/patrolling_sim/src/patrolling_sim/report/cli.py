@@ -16,6 +16,8 @@ def parser():
                     help="results folder(s) (searched recursively) or *_info.csv files")
     ap.add_argument("--out", required=True, metavar="OUT_DIR", help="output folder (created)")
     ap.add_argument("--title", default=None, help="report title")
+    ap.add_argument("--no-run-plots", action="store_true",
+                    help="skip the per-run idleness-over-time figures (large batches)")
     ap.add_argument("-q", "--quiet", action="store_true", help="no warnings, no summary")
     return ap
 
@@ -27,7 +29,7 @@ def main(argv):
     setup_logging()
     logging.getLogger("matplotlib").setLevel(logging.WARNING)
     from .build import build_report
-    res = build_report(args.dirs, args.out, args.title)
+    res = build_report(args.dirs, args.out, args.title, run_plots=not args.no_run_plots)
     if not args.quiet:
         for w in res["warnings"]:
             sys.stderr.write(f"{PROG}: warning: {w}\n")
