@@ -242,6 +242,7 @@ class Stage2D {
   double snapshot_period_ = 0, status_period_ = 2.0, log_period_ = 5.0, render_scale_ = 0;
   int threads_ = 0;
   int substeps_ = 5;
+  bool scan_always_ = false;  // benchmarking: compute scans without subscribers
 
   // laser beam directions (robot laser frame)
   std::vector<double> beam_cos_, beam_sin_;
@@ -355,6 +356,7 @@ void Stage2D::setup() {
   log_period_ = positive("log_period", 5.0);
   render_scale_ = positive("render_scale", 0.0, true);
   threads_ = param<int>("threads", 0);
+  scan_always_ = param<bool>("scan_always", false);
   // default: physics sub-steps of at most 10 ms
   substeps_ = param<int>("physics_substeps", std::max(1, static_cast<int>(std::ceil(step_ / 0.01 - 1e-9))));
   if (substeps_ < 1) throw InputError("parameter ~physics_substeps must be >= 1");
@@ -582,7 +584,7 @@ bool Stage2D::write_snapshot(std::string* path) {
 }
 
 bool Stage2D::wants_scan(const Robot& r) const {
-  return r.scan_pub.getNumSubscribers() > 0 || (show_lasers_ && (gui_ || snapshot_period_ > 0));
+  return scan_always_ || r.scan_pub.getNumSubscribers() > 0 || (show_lasers_ && (gui_ || snapshot_period_ > 0));
 }
 
 void Stage2D::scan_robot(Robot& r) {

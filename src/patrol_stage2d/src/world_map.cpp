@@ -215,28 +215,32 @@ double WorldMap::raycast(double x, double y, double a, double max_range) const {
 }
 
 double WorldMap::raycast_dir(double x, double y, double dx, double dy, double max_range) const {
-  const double px = (x - ox_) / res_, py = (y - oy_) / res_;
-  const double tmax = max_range / res_;
+  // grid units (cells); the padded distance field is 0 on occupied cells and on the border
+  const float px = static_cast<float>((x - ox_) / res_), py = static_cast<float>((y - oy_) / res_);
+  const float fdx = static_cast<float>(dx), fdy = static_cast<float>(dy);
+  const float tmax = static_cast<float>(max_range / res_);
   const int W = width_ + 2;
-  const double inv_dx = dx != 0 ? 1.0 / dx : std::numeric_limits<double>::infinity();
-  const double inv_dy = dy != 0 ? 1.0 / dy : std::numeric_limits<double>::infinity();
-  double t = 0;
+  const float* field = dist_.data();
+  const float kInf = std::numeric_limits<float>::infinity();
+  const float inv_dx = fdx != 0 ? 1.0f / fdx : kInf, inv_dy = fdy != 0 ? 1.0f / fdy : kInf;
+  const float fw = static_cast<float>(width_), fh = static_cast<float>(height_);
+  float t = 0;
   while (t < tmax) {
-    double cx = px + dx * t, cy = py + dy * t;
-    if (cx < 0 || cy < 0 || cx >= width_ || cy >= height_) return t * res_;  // map border
+    float cx = px + fdx * t, cy = py + fdy * t;
+    if (!(cx >= 0 && cy >= 0 && cx < fw && cy < fh)) return t * res_;  // map border
     int i = static_cast<int>(cx), j = static_cast<int>(cy);
-    if (occ_[static_cast<size_t>(j) * width_ + i]) return t * res_;
-    float D = dist_[static_cast<size_t>(j + 1) * W + (i + 1)];
+    float D = field[(j + 1) * W + (i + 1)];
+    if (D == 0.0f) return t * res_;  // occupied cell: t is where the ray entered it
     if (D > 2.0f) {
-      // the point is within sqrt(2)/2 of the cell centre and every occupied cell square is at
-      // least D - sqrt(2)/2 from it: jumping D - 1.5 cannot skip an obstacle
-      t += D - 1.5;
+      // every occupied cell square is at least D - sqrt(2) from any point of this cell:
+      // jumping D - 1.5 cannot skip an obstacle
+      t += D - 1.5f;
       continue;
     }
     // one DDA step: to the boundary of the current cell
-    double tx = dx > 0 ? (i + 1 - cx) * inv_dx : (dx < 0 ? (i - cx) * inv_dx : std::numeric_limits<double>::infinity());
-    double ty = dy > 0 ? (j + 1 - cy) * inv_dy : (dy < 0 ? (j - cy) * inv_dy : std::numeric_limits<double>::infinity());
-    t += std::min(tx, ty) + 1e-7;
+    float tx = fdx > 0 ? (i + 1 - cx) * inv_dx : (fdx < 0 ? (i - cx) * inv_dx : kInf);
+    float ty = fdy > 0 ? (j + 1 - cy) * inv_dy : (fdy < 0 ? (j - cy) * inv_dy : kInf);
+    t += std::min(tx, ty) + 1e-4f;
   }
   return max_range;
 }

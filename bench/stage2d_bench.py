@@ -1,0 +1,207 @@
+#!/usr/bin/python3
+"""Benchmark of patrol_stage2d/stage2d_node: unthrottled real-time factor (speedup 0), CPU and
+memory, for several maps and team sizes, in three laser modes:
+
+  none  no scan computed (nobody subscribes)
+  calc  every robot's scan computed at 10 Hz sim time (~scan_always), not sent
+  sub   every robot's scan computed and sent to a subscriber process (rospy, AnyMsg: no
+        deserialisation) -- the subscriber's CPU is reported separately
+
+Each run: own rosmaster on a free port, node started with the map and computed start
+positions (scripts/graph_tool.py startposes), warm-up, then a measuring window. The RTF is
+sim seconds (from /stage2d/status) per wall second over the window; CPU% is the node's
+user+system time over the window (100 % = one core); RSS is the node's resident memory.
+
+  /usr/bin/python3 bench/stage2d_bench.py                       # default matrix, markdown table
+  /usr/bin/python3 bench/stage2d_bench.py --maps cumberland --robots 12 200 --modes calc
+"""
+import argparse
+import json
+import os
+import platform
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+BINARY = os.path.join(ROOT, "devel", "lib", "patrol_stage2d", "stage2d_node")
+TICK = os.sysconf("SC_CLK_TCK")
+
+SUBSCRIBER = r"""
+import sys, rospy
+rospy.init_node("bench_scan_sub", anonymous=True)
+n = int(sys.argv[1])
+count = [0]
+def cb(m): count[0] += 1
+subs = [rospy.Subscriber(f"/robot_{i}/base_scan", rospy.AnyMsg, cb, queue_size=1) for i in range(n)]
+rospy.spin()
+"""
+
+
+def ros_env():
+    setup = os.path.join(ROOT, "devel", "setup.bash")
+    if not os.path.isfile(setup):
+        sys.exit(f"stage2d_bench: error: {setup} missing: run 'make build' first")
+    out = subprocess.run(["bash", "-c", f"source '{setup}' && env -0"], check=True,
+                         capture_output=True).stdout
+    env = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
+    env["PATH"] = "/usr/bin:/bin:" + env.get("PATH", "")
+    return env
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start_poses(map_name, n):
+    out = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "scripts", "graph_tool.py"),
+                          "startposes", map_name, str(n)], capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr.strip() or out.stdout.strip())
+    vals = []
+    for line in out.stdout.splitlines():
+        if line.startswith("robot_"):
+            f = line.split()
+            vals += [f[1], f[2], "1.5708"]
+    if len(vals) != 3 * n:
+        raise RuntimeError(f"graph_tool gave {len(vals) // 3} poses for {n} robots")
+    return " ".join(vals)
+
+
+def cpu_seconds(pid):
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICK
+
+
+def rss_mb(pid):
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def read_status(env):
+    """Latest /stage2d/status JSON (latched topic)."""
+    out = subprocess.run(["/usr/bin/python3", "-c",
+                          "import rospy,sys;from std_msgs.msg import String;"
+                          "rospy.init_node('bench_status',anonymous=True,disable_signals=True);"
+                          "print(rospy.wait_for_message('/stage2d/status',String,20).data)"],
+                         env=env, capture_output=True, text=True, timeout=60)
+    if out.returncode != 0:
+        raise RuntimeError("no /stage2d/status: " + out.stderr.strip()[-300:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def sim_time_now(env, pid_node):
+    st = read_status(env)
+    return st["sim_time"], time.time()
+
+
+def run_one(base_env, map_name, n, mode, warmup, window):
+    port = free_port()
+    env = dict(base_env, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
+    procs = []
+
+    def spawn(args, **kw):
+        p = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                             start_new_session=True, **kw)
+        procs.append(p)
+        return p
+
+    try:
+        spawn(["/usr/bin/rosmaster", "--core", "-p", str(port)])
+        deadline = time.time() + 20
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+                break
+            except OSError:
+                if time.time() > deadline:
+                    raise RuntimeError("rosmaster did not start")
+                time.sleep(0.1)
+        yaml_path = os.path.join(ROOT, "maps", map_name, f"{map_name}.yaml")
+        poses = start_poses(map_name, n)
+        node = spawn([BINARY, "__name:=stage2d", f"_map:={yaml_path}", f"_poses:={poses}",
+                      "_speedup:=0", "_status_period:=0.5", "_log_period:=1000",
+                      f"_scan_always:={'true' if mode == 'calc' else 'false'}"])
+        sub = None
+        if mode == "sub":
+            sub = spawn(["/usr/bin/python3", "-c", SUBSCRIBER, str(n)])
+        time.sleep(warmup)
+        if node.poll() is not None:
+            raise RuntimeError(f"node exited {node.returncode}")
+        s0, w0 = sim_time_now(env, node.pid)
+        c0 = cpu_seconds(node.pid)
+        cs0 = cpu_seconds(sub.pid) if sub else 0.0
+        time.sleep(window)
+        s1, w1 = sim_time_now(env, node.pid)
+        c1 = cpu_seconds(node.pid)
+        cs1 = cpu_seconds(sub.pid) if sub else 0.0
+        st = read_status(env)
+        return {
+            "map": map_name, "robots": n, "mode": mode,
+            "rtf": (s1 - s0) / (w1 - w0),
+            "cpu": 100.0 * (c1 - c0) / (w1 - w0),
+            "sub_cpu": 100.0 * (cs1 - cs0) / (w1 - w0) if sub else None,
+            "rss": rss_mb(node.pid),
+            "scans_per_wall_s": None,
+            "scans_computed": st["scans_computed"],
+        }
+    finally:
+        for p in reversed(procs):
+            try:
+                os.killpg(p.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+        for p in reversed(procs):
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait(5)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--maps", nargs="+", default=["grid", "cumberland"])
+    ap.add_argument("--robots", nargs="+", type=int, default=[1, 4, 8, 12, 32, 100, 200])
+    ap.add_argument("--modes", nargs="+", default=["none", "calc", "sub"],
+                    choices=["none", "calc", "sub"])
+    ap.add_argument("--sub-max-robots", type=int, default=32,
+                    help="run the 'sub' mode only up to this many robots (rospy subscriber cost)")
+    ap.add_argument("--warmup", type=float, default=2.0)
+    ap.add_argument("--window", type=float, default=5.0)
+    args = ap.parse_args()
+    if not os.access(BINARY, os.X_OK):
+        sys.exit(f"stage2d_bench: error: {BINARY} missing: run 'make build' first")
+    for n in args.robots:
+        if n < 1:
+            sys.exit(f"stage2d_bench: error: --robots: {n} is not >= 1")
+    env = ros_env()
+    print(f"<!-- {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, "
+          f"{os.cpu_count()} cores, {platform.processor() or platform.machine()} -->")
+    print("| map | robots | lasers | RTF (speedup 0) | node CPU % | node RSS MB | subscriber CPU % |")
+    print("|---|---:|---|---:|---:|---:|---:|")
+    for m in args.maps:
+        for n in args.robots:
+            for mode in args.modes:
+                if mode == "sub" and n > args.sub_max_robots:
+                    continue
+                try:
+                    r = run_one(env, m, n, mode, args.warmup, args.window)
+                except (RuntimeError, subprocess.TimeoutExpired) as e:
+                    print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | |", flush=True)
+                    continue
+                sub = f"{r['sub_cpu']:.0f}" if r["sub_cpu"] is not None else ""
+                print(f"| {m} | {n} | {mode} | {r['rtf']:.1f} | {r['cpu']:.0f} | {r['rss']:.0f} | {sub} |",
+                      flush=True)
+
+
+if __name__ == "__main__":
+    main()
