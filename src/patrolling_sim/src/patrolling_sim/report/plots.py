@@ -177,11 +177,12 @@ def heatmap_figure(title, occupancy, graph, panels):
     """panels: list of (panel title, {vertex: average idleness}). Vertices without samples
     are drawn as hollow grey circles. One colour scale shared by all panels."""
     k = len(panels)
-    ncols = min(3, k)
-    nrows = int(math.ceil(k / ncols))
     w_m, h_m = occupancy.size_m
     aspect = h_m / w_m if w_m else 1.0
-    pw = 5.5 if ncols > 1 else 7.5
+    # wide maps get fewer, wider panels
+    ncols = min(k, 3 if aspect >= 0.75 else (2 if aspect >= 0.45 else 1))
+    nrows = int(math.ceil(k / ncols))
+    pw = {1: 7.5 if aspect >= 0.75 else 12.0, 2: 7.0}.get(ncols, 5.5)
     fig = Figure(figsize=(pw * ncols + 1.2, max(3.0, pw * aspect * nrows + 0.9 * nrows + 0.6)))
     vals = [v for _, d in panels for v in d.values()]
     vmin = min(vals) if vals else 0.0
@@ -196,7 +197,16 @@ def heatmap_figure(title, occupancy, graph, panels):
     pos = {v: graph.nodes[v]["pos"] for v in graph.nodes}
     edges = {(min(u, w), max(u, w)) for u, w in graph.edges() if u != w}
     n_v = graph.number_of_nodes()
-    size = 160 if n_v <= 40 else (90 if n_v <= 80 else 45)
+    # marker diameter: 60 % of the median nearest-vertex distance, 5..14 points
+    xy = np.array([pos[v] for v in sorted(pos)], dtype=float)
+    if len(xy) > 1:
+        d = np.sqrt(((xy[:, None, :] - xy[None, :, :]) ** 2).sum(-1))
+        np.fill_diagonal(d, np.inf)
+        spacing = float(np.median(d.min(axis=1)))
+    else:
+        spacing = max(w_m, h_m) / 10.0
+    pts_per_m = pw * 72.0 / max(w_m, 1e-6)
+    size = float(np.clip(0.6 * spacing * pts_per_m, 5.0, 14.0)) ** 2
     axes = []
     for i, (ptitle, avg) in enumerate(panels):
         ax = fig.add_subplot(nrows, ncols, i + 1)
