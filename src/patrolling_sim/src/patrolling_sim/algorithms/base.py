@@ -161,6 +161,15 @@ class PatrolStrategy:
         self.driver.send([self.id, *[int(x) for x in payload]])
 
 
+def argmax_random(items, key, rng, eps=1e-9):
+    """The item maximising ``key``; ties (within ``eps``) broken uniformly with ``rng``."""
+    items = list(items)
+    vals = [key(x) for x in items]
+    best = max(vals)
+    ties = [x for x, v in zip(items, vals) if v >= best - eps]
+    return ties[0] if len(ties) == 1 else rng.choice(ties)
+
+
 #: short name -> strategy class; filled by :func:`register`
 REGISTRY: Dict[str, type] = {}
 
@@ -171,3 +180,21 @@ def register(cls):
         raise ValueError(f"{cls.__name__} has no name")
     REGISTRY[cls.name] = cls
     return cls
+
+
+def names():
+    """Registered short names, sorted."""
+    return sorted(REGISTRY)
+
+
+def create(name: str, ctx: StrategyContext) -> PatrolStrategy:
+    """Instantiate the strategy registered as ``name``.
+
+    Raises:
+        KeyError: unknown name (the message lists the known ones).
+    """
+    try:
+        cls = REGISTRY[name]
+    except KeyError:
+        raise KeyError(f"unknown algorithm '{name}' (known: {', '.join(names())})") from None
+    return cls(ctx)

@@ -1,0 +1,127 @@
+"""CBLS, Concurrent Bayesian Learning Strategy (Portugal & Rocha, "Cooperative multi-robot
+patrol with Bayesian learning", Autonomous Robots 40(5), 2016).
+
+Each robot keeps, per vertex, the number of visits it knows of ``n[v]`` (own and reported),
+the running mean idleness at those visits ``avg[v]``, and a learnt weight per directed arc
+``real_hist[u->c]`` (start 1.0, clamped to [0.5, 2]). At vertex u:
+
+1. candidates = neighbours no teammate announced as its next goal (all if none remain);
+   a single candidate is taken directly;
+2. prior of candidate c: its expected idleness ``cur[c] = (avg[c]*n[c] + idl[c]) / (n[c]+1)``,
+   blended 0.75/0.25 with the best ``cur`` among c's own free neighbours (look-ahead; a
+   dead end uses cur[c] only); priors are normalised;
+3. posterior = prior * hist[u->c] (hist = real_hist normalised over u's arcs); argmax, ties
+   to the cheaper edge;
+4. learning, on reaching the chosen vertex: with H the normalised entropy of the posteriors
+   of that decision, the arcs of the decision whose targets now have the highest current
+   idleness are rewarded by +(1-H), those with the lowest punished by -(1-H) (punishment wins
+   when both apply).
+
+Robots broadcast ``[id, 32, v, next]`` (SEBS's message id) on reaching v.
+"""
+import math
+
+from .base import MSG_SEBS_REACHED, PatrolStrategy, register
+
+HIST_MIN, HIST_MAX = 0.5, 2.0
+
+
+@register
+class ConcurrentBayesianLearning(PatrolStrategy):
+    name = "CBLS"
+
+    def __init__(self, ctx):
+        super().__init__(ctx)
+        n = self.graph.n
+        self.nvis = [0] * n
+        self.avg = [0.0] * n
+        self.real_hist = {(u, w): 1.0 for u in range(n) for w in self.graph.neighbor_ids(u)}
+        self.intention = {}
+        self.decision = None            # (u, candidates, H) of the last decision with a choice
+
+    def start(self, start_vertex, now):
+        super().start(start_vertex, now)
+        self.nvis[start_vertex] = 1
+
+    # -- shared knowledge -------------------------------------------------------------------
+    def _record_visit(self, v, now):
+        idl = now - self.last_visit[v]
+        self.avg[v] = (self.avg[v] * self.nvis[v] + idl) / (self.nvis[v] + 1)
+        self.nvis[v] += 1
+        self.last_visit[v] = now
+        self.update_idleness(now)
+
+    def cur(self, v):
+        return (self.avg[v] * self.nvis[v] + self.idleness[v]) / (self.nvis[v] + 1)
+
+    def hist(self, u, c):
+        total = sum(self.real_hist[(u, w)] for w in self.graph.neighbor_ids(u))
+        return self.real_hist[(u, c)] / total
+
+    def _taken(self):
+        return {t for r, t in self.intention.items() if r != self.id}
+
+    # -- decision ---------------------------------------------------------------------------
+    def choose_next(self, now):
+        self.update_idleness(now)
+        u = self.current
+        nbrs = self.graph.neighbor_ids(u)
+        taken = self._taken()
+        cands = [w for w in nbrs if w not in taken] or nbrs
+        if len(cands) == 1:
+            self.decision = None
+            return cands[0]
+        priors = []
+        for c in cands:
+            if self.graph.degree(c) == 1:
+                prior = self.cur(c)
+            else:
+                free = [w for w in self.graph.neighbor_ids(c) if w not in taken]
+                m = max((self.cur(w) for w in free), default=0.0)
+                prior = self.cur(c) if m <= 0.001 else 0.75 * self.cur(c) + 0.25 * m
+            priors.append(prior)
+        total = sum(priors)
+        priors = [p / total for p in priors] if total > 0.001 else [1.0 / len(cands)] * len(cands)
+        post = [p * self.hist(u, c) for p, c in zip(priors, cands)]
+        best = max(post)
+        ties = [c for p, c in zip(post, cands) if p >= best - 1e-12]
+        choice = min(ties, key=lambda c: (self.graph.arc_cost(u, c), c))
+        s = sum(post)
+        H = 0.0
+        if s > 0:
+            probs = [p / s for p in post if p > 0]
+            H = min(1.0, -sum(p * math.log2(p) for p in probs) / math.log2(len(cands)))
+        self.decision = (u, cands, H)
+        return choice
+
+    def next_vertex(self, now):
+        v = super().next_vertex(now)
+        self.send(MSG_SEBS_REACHED, self.current, v)
+        return v
+
+    # -- events -----------------------------------------------------------------------------
+    def on_arrival(self, vertex, now):
+        changed = vertex != self.current
+        self.current = vertex
+        self._record_visit(vertex, now)
+        if changed and self.decision is not None:
+            self._learn()
+
+    def _learn(self):
+        u, cands, H = self.decision
+        r = 1.0 - H
+        idl = {c: self.idleness[c] for c in cands}
+        hi, lo = max(idl.values()), min(idl.values())
+        for c in cands:
+            delta = 0.0
+            if idl[c] >= hi:
+                delta = r
+            if idl[c] <= lo:
+                delta = -r
+            self.real_hist[(u, c)] = min(HIST_MAX, max(HIST_MIN, self.real_hist[(u, c)] + delta))
+        self.decision = None
+
+    def on_message(self, data, now):
+        if len(data) >= 4 and data[1] == MSG_SEBS_REACHED and 0 <= data[2] < self.graph.n:
+            self._record_visit(data[2], now)
+            self.intention[data[0]] = data[3]

@@ -1,0 +1,77 @@
+"""MSP, Multilevel Subgraph Patrolling (Portugal & Rocha, ACM SAC 2010).
+
+The graph is split into N balanced connected regions, one per robot, and each robot loops
+over a closed route of its own region. The original read offline route files
+``MSP/<map>/<map>_<N>_<i>``; those are used when they are valid closed walks on the current
+graph (grid's are), otherwise (stale files, or no file for this team size) the partition and
+routes are computed here: :func:`patrolling_sim.routes.balanced_partition` plus
+:func:`patrolling_sim.routes.closed_route` per region. All robots compute the same partition;
+regions are matched to robots by start position when the team's start vertices are known
+(``ctx.params['start_vertices']``), else region i goes to robot i.
+"""
+import logging
+import os
+
+from .. import paths
+from ..errors import PatrolInputError
+from ..msp_routes import load_route
+from ..routes import balanced_partition, closed_route
+from .base import register
+from .cgg import RouteFollower
+
+log = logging.getLogger(__name__)
+
+
+def assign_regions(pgraph, regions, start_vertices):
+    """Greedy matching of regions to robots by graph distance from each robot's start vertex
+    to its region (closest pairs first; deterministic). Returns region index per robot."""
+    D = pgraph.dist
+    pairs = sorted((min(D[s, v] for v in reg), r, i)
+                   for r, s in enumerate(start_vertices) for i, reg in enumerate(regions))
+    robot_region, used = {}, set()
+    for _, r, i in pairs:
+        if r not in robot_region and i not in used:
+            robot_region[r] = i
+            used.add(i)
+    return [robot_region[r] for r in range(len(start_vertices))]
+
+
+def msp_route(pgraph, map_name, team_size, robot_id, start_vertices=None, route_file=None):
+    """(route, source) for one robot: a valid shipped file, else a computed region route."""
+    path = route_file or paths.msp_route_file(map_name, team_size, robot_id)
+    if os.path.isfile(path):
+        try:
+            return load_route(path, pgraph), path
+        except PatrolInputError as e:
+            if route_file:
+                raise
+            log.info("MSP: %s; computing the partition instead", e)
+    regions = balanced_partition(pgraph, team_size)
+    if start_vertices and len(start_vertices) == team_size:
+        idx = assign_regions(pgraph, regions, start_vertices)[robot_id]
+    else:
+        idx = robot_id
+    return closed_route(pgraph, regions[idx]), "computed"
+
+
+@register
+class MultilevelSubgraphPatrolling(RouteFollower):
+    name = "MSP"
+
+    def build_route(self, start_vertex):
+        p = self.ctx.params
+        route, self.route_source = msp_route(
+            self.graph, self.ctx.map_name, self.ctx.team_size, self.id,
+            start_vertices=p.get("start_vertices"), route_file=p.get("msp_route"))
+        return route
+
+    def start(self, start_vertex, now):
+        super().start(start_vertex, now)
+        if start_vertex not in self.route:
+            # begin at the region's vertex closest to where the robot stands
+            D = self.graph.dist
+            cyc = self.route[:-1]
+            k = min(range(len(cyc)), key=lambda j: (D[start_vertex, cyc[j]], j))
+            cyc = cyc[k:] + cyc[:k]
+            self.route = cyc + cyc[:1]
+            self.k = 0                  # current is off the route: the first choice is cyc[0]

@@ -1,0 +1,10 @@
+"""RAND: go to a uniformly random neighbour (Machado et al. 2002)."""
+from .base import PatrolStrategy, register
+
+
+@register
+class RandomStrategy(PatrolStrategy):
+    name = "RAND"
+
+    def choose_next(self, now):
+        return self.rng.choice(self.graph.neighbor_ids(self.current))
