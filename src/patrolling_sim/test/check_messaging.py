@@ -3,7 +3,7 @@
 
 ~lost (bool): with /lost_message_rate 1.0 no algorithm message (type >= 30) may appear on
 /results while the 10/11 messages still flow. Otherwise every algorithm message [i,31,v]
-must follow robot i's [i,11,v] by at least /communication_delay (and by less than that + 1 s).
+must follow robot i's [i,11,v] by at least /communication_delay (and by less than that + 5 s).
 """
 import sys
 import time
@@ -46,7 +46,7 @@ class TestMessaging(unittest.TestCase):
                 self.assertEqual(v, v_rep, f"robot {i} message {k}")
                 self.assertGreaterEqual(t_msg - t_rep, delay - 0.05,
                                         f"robot {i} message {k} not delayed")
-                self.assertLess(t_msg - t_rep, delay + 1.0, f"robot {i} message {k} late")
+                self.assertLess(t_msg - t_rep, delay + 5.0, f"robot {i} message {k} late")
 
 
 if __name__ == "__main__":
