@@ -9,7 +9,7 @@ memory, for several maps and team sizes, in three laser modes:
 
 Each run: own rosmaster on a free port, node started with the map and computed start
 positions (scripts/graph_tool.py startposes), warm-up, then a measuring window. The RTF is
-sim seconds (from /stage2d/status) per wall second over the window; CPU% is the node's
+sim seconds per wall second over the window (from the node's periodic log lines); CPU% is the node's
 user+system time over the window (100 % = one core); RSS is the node's resident memory.
 
   /usr/bin/python3 bench/stage2d_bench.py                       # default matrix, markdown table
@@ -19,10 +19,12 @@ import argparse
 import json
 import os
 import platform
+import re
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
@@ -86,21 +88,15 @@ def rss_mb(pid):
     return float("nan")
 
 
-def read_status(env):
-    """Latest /stage2d/status JSON (latched topic)."""
-    out = subprocess.run(["/usr/bin/python3", "-c",
-                          "import rospy,sys;from std_msgs.msg import String;"
-                          "rospy.init_node('bench_status',anonymous=True,disable_signals=True);"
-                          "print(rospy.wait_for_message('/stage2d/status',String,20).data)"],
-                         env=env, capture_output=True, text=True, timeout=60)
-    if out.returncode != 0:
-        raise RuntimeError("no /stage2d/status: " + out.stderr.strip()[-300:])
-    return json.loads(out.stdout.strip().splitlines()[-1])
+LOG_RE = re.compile(r"\[ INFO\] \[(\d+\.\d+)\]: stage2d: sim time ([0-9.]+) s, real-time factor")
 
 
-def sim_time_now(env, pid_node):
-    st = read_status(env)
-    return st["sim_time"], time.time()
+def read_log(stream, out):
+    """Collects (wall, sim) pairs from the node's periodic real-time-factor log lines."""
+    for line in stream:
+        m = LOG_RE.search(line)
+        if m:
+            out.append((float(m.group(1)), float(m.group(2))))
 
 
 def run_one(base_env, map_name, n, mode, warmup, window):
@@ -108,9 +104,9 @@ def run_one(base_env, map_name, n, mode, warmup, window):
     env = dict(base_env, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
     procs = []
 
-    def spawn(args, **kw):
-        p = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             start_new_session=True, **kw)
+    def spawn(args, stdout=subprocess.DEVNULL):
+        p = subprocess.Popen(args, env=env, stdout=stdout, stderr=subprocess.DEVNULL,
+                             start_new_session=True, text=True)
         procs.append(p)
         return p
 
@@ -127,31 +123,37 @@ def run_one(base_env, map_name, n, mode, warmup, window):
                 time.sleep(0.1)
         yaml_path = os.path.join(ROOT, "maps", map_name, f"{map_name}.yaml")
         poses = start_poses(map_name, n)
-        node = spawn([BINARY, "__name:=stage2d", f"_map:={yaml_path}", f"_poses:={poses}",
-                      "_speedup:=0", "_status_period:=0.5", "_log_period:=1000",
-                      f"_scan_always:={'true' if mode == 'calc' else 'false'}"])
+        node = spawn(["stdbuf", "-oL", BINARY, "__name:=stage2d", f"_map:={yaml_path}",
+                      f"_poses:={poses}", "_speedup:=0", "_log_period:=0.5",
+                      f"_scan_always:={'true' if mode == 'calc' else 'false'}"],
+                     stdout=subprocess.PIPE)
+        samples = []
+        threading.Thread(target=read_log, args=(node.stdout, samples), daemon=True).start()
         sub = None
         if mode == "sub":
             sub = spawn(["/usr/bin/python3", "-c", SUBSCRIBER, str(n)])
         time.sleep(warmup)
         if node.poll() is not None:
             raise RuntimeError(f"node exited {node.returncode}")
-        s0, w0 = sim_time_now(env, node.pid)
+        w_start = time.time()
         c0 = cpu_seconds(node.pid)
         cs0 = cpu_seconds(sub.pid) if sub else 0.0
         time.sleep(window)
-        s1, w1 = sim_time_now(env, node.pid)
+        w_end = time.time()
         c1 = cpu_seconds(node.pid)
         cs1 = cpu_seconds(sub.pid) if sub else 0.0
-        st = read_status(env)
+        rss = rss_mb(node.pid)
+        inside = [(w, t) for w, t in list(samples) if w_start - 0.6 <= w <= w_end + 0.1]
+        if len(inside) < 2:
+            raise RuntimeError(f"only {len(inside)} real-time-factor log lines in the window")
+        (w0, s0), (w1, s1) = inside[0], inside[-1]
         return {
             "map": map_name, "robots": n, "mode": mode,
             "rtf": (s1 - s0) / (w1 - w0),
-            "cpu": 100.0 * (c1 - c0) / (w1 - w0),
-            "sub_cpu": 100.0 * (cs1 - cs0) / (w1 - w0) if sub else None,
-            "rss": rss_mb(node.pid),
-            "scans_per_wall_s": None,
-            "scans_computed": st["scans_computed"],
+            "cpu": 100.0 * (c1 - c0) / (w_end - w_start),
+            "sub_cpu": 100.0 * (cs1 - cs0) / (w_end - w_start) if sub else None,
+            "rss": rss,
+            "load": os.getloadavg()[0],
         }
     finally:
         for p in reversed(procs):
@@ -178,6 +180,8 @@ def main():
     ap.add_argument("--warmup", type=float, default=2.0)
     ap.add_argument("--window", type=float, default=5.0)
     args = ap.parse_args()
+    # SIGTERM -> SystemExit, so the finally blocks stop this run's master and node
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if not os.access(BINARY, os.X_OK):
         sys.exit(f"stage2d_bench: error: {BINARY} missing: run 'make build' first")
     for n in args.robots:
@@ -186,8 +190,8 @@ def main():
     env = ros_env()
     print(f"<!-- {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, "
           f"{os.cpu_count()} cores, {platform.processor() or platform.machine()} -->")
-    print("| map | robots | lasers | RTF (speedup 0) | node CPU % | node RSS MB | subscriber CPU % |")
-    print("|---|---:|---|---:|---:|---:|---:|")
+    print("| map | robots | lasers | RTF (speedup 0) | node CPU % | node RSS MB | subscriber CPU % | load avg |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|")
     for m in args.maps:
         for n in args.robots:
             for mode in args.modes:
@@ -196,10 +200,10 @@ def main():
                 try:
                     r = run_one(env, m, n, mode, args.warmup, args.window)
                 except (RuntimeError, subprocess.TimeoutExpired) as e:
-                    print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | |", flush=True)
+                    print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | | |", flush=True)
                     continue
                 sub = f"{r['sub_cpu']:.0f}" if r["sub_cpu"] is not None else ""
-                print(f"| {m} | {n} | {mode} | {r['rtf']:.1f} | {r['cpu']:.0f} | {r['rss']:.0f} | {sub} |",
+                print(f"| {m} | {n} | {mode} | {r['rtf']:.1f} | {r['cpu']:.0f} | {r['rss']:.0f} | {sub} | {r['load']:.1f} |",
                       flush=True)
 
 

@@ -34,9 +34,6 @@
 #include "patrol_stage2d/SetPose.h"
 #include "patrol_stage2d/world_map.h"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 using patrol_stage2d::InputError;
 using patrol_stage2d::WorldMap;
@@ -515,9 +512,6 @@ void Stage2D::setup() {
                        std::string(e.what()).substr(0, 120));
     }
   }
-#ifdef _OPENMP
-  if (threads_ > 0) omp_set_num_threads(threads_);
-#endif
   ROS_INFO("stage2d: %d robots, step %.3f s, speedup %g%s, laser %d beams %.1f deg %.1f m @ %.1f Hz", n, step_,
            speedup_, speedup_ <= 0 ? " (as fast as possible)" : "", laser_samples_, fov_deg, laser_range_max_,
            laser_rate_);
@@ -636,9 +630,19 @@ void Stage2D::scan_robot(Robot& r) {
 }
 
 void Stage2D::compute_scans(const std::vector<int>& which) {
+  // robots are split over worker threads (no spinning OpenMP barrier: the machine is shared
+  // with the other nodes of an experiment); each robot has its own noise generator, so the
+  // result does not depend on the thread count
   const int n = static_cast<int>(which.size());
-#pragma omp parallel for schedule(dynamic, 1) if (n > 1)
-  for (int k = 0; k < n; ++k) scan_robot(robots_[which[k]]);
+  int T = threads_ > 0 ? threads_ : static_cast<int>(std::thread::hardware_concurrency());
+  T = std::max(1, std::min(T, n));
+  auto work = [&](int k0) {
+    for (int k = k0; k < n; k += T) scan_robot(robots_[which[k]]);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < T; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (auto& th : pool) th.join();
   scans_computed_ += n;
 }
 
@@ -828,7 +832,8 @@ cv::Mat Stage2D::render() {
 void Stage2D::publish_status(double rtf) {
   std::ostringstream js;
   long wall = 0, rob = 0;
-  js << "{\"sim_time\": " << fmt("%.3f", sim_time_) << ", \"steps\": " << steps_ << ", \"rtf\": " << fmt("%.3f", rtf)
+  double wall_now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  js << "{\"sim_time\": " << fmt("%.3f", sim_time_) << ", \"wall_time\": " << fmt("%.3f", wall_now) << ", \"steps\": " << steps_ << ", \"rtf\": " << fmt("%.3f", rtf)
      << ", \"speedup\": " << speedup_ << ", \"robots\": " << robots_.size() << ", \"scans_computed\": " << scans_computed_
      << ", \"contacts\": [";
   for (size_t i = 0; i < robots_.size(); ++i) {
