@@ -14,9 +14,10 @@ map when a map is given. Displays whose topic has no publisher only show a statu
 """
 import yaml
 
-#: one colour per robot (R; G; B), cycling
-ROBOT_COLORS = ((40, 90, 255), (230, 40, 40), (0, 190, 190), (210, 0, 210),
-                (255, 140, 0), (30, 170, 30), (200, 200, 0), (130, 60, 200))
+#: one colour per robot (R; G; B), cycling; robot 0 is not blue/red so that its laser stays
+#: visible over the graph markers (blue edges, red-to-green vertices)
+ROBOT_COLORS = ((255, 140, 0), (0, 190, 190), (210, 0, 210), (30, 170, 30),
+                (40, 90, 255), (230, 40, 40), (200, 200, 0), (130, 60, 200))
 WINDOW = (1280, 800)
 #: Qt dock layout (QMainWindow::saveState) as rviz 1.14 writes it for its stock layout:
 #: Displays dock on the left, Views on the right, Time at the bottom, render view between.
