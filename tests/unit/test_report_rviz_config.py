@@ -85,3 +85,15 @@ def test_bad_arguments(args, needle):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("make_rviz_config.py: error: ")
     assert needle in lines[0], lines[0]
+
+
+def test_experiment_config_for_runner():
+    from patrolling_sim.report.rviz_config import experiment_config_text
+    from patrolling_sim.errors import PatrolInputError
+    cfg = yaml.safe_load(experiment_config_text(3, "cumberland"))
+    groups = displays_by_class(cfg)["rviz/Group"]
+    assert [g["Enabled"] for g in groups] == [True, True, True]
+    view = cfg["Visualization Manager"]["Views"]["Current"]
+    assert view["X"] == pytest.approx(688 * 0.075 / 2, abs=1e-3)
+    with pytest.raises(PatrolInputError):
+        experiment_config_text(2, "nosuchmap")

@@ -175,3 +175,18 @@ def map_extent(occupancy):
     w, h = occupancy.size_m
     ox, oy = occupancy.origin[0], occupancy.origin[1]
     return (ox, ox + w, oy, oy + h)
+
+
+def experiment_config_text(robots, map_name):
+    """Configuration for one experiment: exactly ``robots`` groups, all enabled, view centred
+    on ``map_name`` (a shipped map name or a yaml/.graph path). For the runner's
+    ``rviz`` option, which can write it next to the run's results.
+
+    Raises:
+        PatrolInputError: unknown map or unreadable map files.
+    """
+    from .. import paths
+    from ..mapio import load_map
+    extent = map_extent(load_map(paths.map_files(map_name)[0]))
+    return config_text(robots, robots, extent,
+                       header=[f"rviz configuration for {robots} robot(s) on {map_name}"])
