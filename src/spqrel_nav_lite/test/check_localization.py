@@ -126,6 +126,7 @@ class LocalizationTest(unittest.TestCase):
                           client.get_goal_status_text())
         rospy.sleep(1.0)
         errs = [e for e in (self.error(p, s) for s, p in self.est) if e is not None]
+        rospy.loginfo("error series (m): %s", " ".join(f"{e[0]:.2f}" for e in errs))
         self.assertGreater(len(errs), 10, f"only {len(errs)} amcl_pose updates")
         first = errs[0]
         half = errs[len(errs) // 2:]

@@ -1,7 +1,8 @@
 """Monte-Carlo localisation (an AMCL equivalent), vectorised with numpy.
 
 - motion: differential-drive odometry model (rot1, trans, rot2) with noise ``alpha1..4``
-  (as amcl's "diff" model);
+  (amcl's "diff" model, whose standard deviations are ``alpha1*rot^2 + alpha2*trans^2`` etc.,
+  or "diff-corrected", where those expressions are variances);
 - sensor: likelihood field over a distance map (distance to the nearest occupied cell, capped
   at ``max_dist``), beams combined like amcl (``p = 1 + sum pz^3``);
 - resampling: low-variance (systematic), KLD-adaptive particle count between ``min_particles``
@@ -53,7 +54,7 @@ class LikelihoodField:
 class ParticleFilter:
     def __init__(self, field, min_particles=100, max_particles=500, alphas=(0.2, 0.2, 0.8, 0.2),
                  z_hit=0.5, z_rand=0.5, sigma_hit=0.2, laser_max_range=20.0, kld_err=0.05,
-                 kld_z=0.99, laser_x=0.15, rng=None):
+                 kld_z=0.99, laser_x=0.15, rng=None, model="diff"):
         if not 0 < min_particles <= max_particles:
             raise ValueError(f"need 0 < min_particles <= max_particles, got "
                              f"{min_particles}, {max_particles}")
@@ -65,6 +66,9 @@ class ParticleFilter:
         self.laser_max_range = float(laser_max_range)
         self.kld_err, self.kld_z = float(kld_err), float(kld_z)
         self.laser_x = float(laser_x)
+        if model not in ("diff", "diff-corrected"):
+            raise ValueError(f"odom model must be 'diff' or 'diff-corrected', got {model!r}")
+        self.model = model
         self.rng = rng if rng is not None else np.random.default_rng()
         self.particles = np.zeros((self.max_particles, 3))
         self.weights = np.full(self.max_particles, 1.0 / self.max_particles)
@@ -106,9 +110,13 @@ class ParticleFilter:
         r2n = min(abs(rot2), abs(normalize_angle(rot2 - math.pi)))
         a1, a2, a3, a4 = self.alphas
         n = len(self.particles)
-        sd_r1 = math.sqrt(a1 * r1n * r1n + a2 * trans * trans)
-        sd_t = math.sqrt(a3 * trans * trans + a4 * r1n * r1n + a4 * r2n * r2n)
-        sd_r2 = math.sqrt(a1 * r2n * r2n + a2 * trans * trans)
+        sd_r1 = a1 * r1n * r1n + a2 * trans * trans
+        sd_t = a3 * trans * trans + a4 * r1n * r1n + a4 * r2n * r2n
+        sd_r2 = a1 * r2n * r2n + a2 * trans * trans
+        if self.model == "diff-corrected":     # alphas scale variances
+            sd_r1, sd_t, sd_r2 = math.sqrt(sd_r1), math.sqrt(sd_t), math.sqrt(sd_r2)
+        # "diff" (amcl's original model, the one the original launch files use): the same
+        # expressions are used directly as standard deviations
         r1 = rot1 - self.rng.normal(0.0, 1.0, n) * sd_r1
         t = trans - self.rng.normal(0.0, 1.0, n) * sd_t
         r2 = rot2 - self.rng.normal(0.0, 1.0, n) * sd_r2
