@@ -2,8 +2,16 @@
 SHELL := /bin/bash
 export PATH := /usr/bin:/bin:/usr/sbin:/sbin:$(PATH)
 PYTEST_ARGS ?=
+# `make run` experiment (override on the command line, e.g. `make run ALG=SEBS ROBOTS=6`)
+MAP ?= grid
+ROBOTS ?= 4
+ALG ?= CGG
+LOC ?= fake_localization
+TIMEOUT ?= 300
+SPEEDUP ?= 5
+RESULTS ?= results
 
-.PHONY: setup build test unit rostest clean
+.PHONY: setup build run test unit rostest clean
 
 ## setup: install the Debian packages (only if missing) and build the workspace
 setup:
@@ -12,6 +20,14 @@ setup:
 ## build: incremental catkin_make (assumes setup ran once)
 build:
 	catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release > build.log 2>&1 || (tail -40 build.log; exit 1)
+
+## run: setup, one headless experiment (full ROS stack: simulator, navigation, agents,
+## monitor), then the report (summary table and plots) of everything under $(RESULTS)/
+run: setup
+	/usr/bin/python3 scripts/start_experiments.py --headless --map $(MAP) --robots $(ROBOTS) \
+		--alg $(ALG) --loc $(LOC) --timeout $(TIMEOUT) --speedup $(SPEEDUP) --results-dir $(RESULTS)
+	/usr/bin/python3 scripts/report.py $(RESULTS)/$(MAP)_$(ROBOTS)/$(ALG) --out $(RESULTS)/report
+	@echo "report: $(RESULTS)/report/report.html (plots: $(RESULTS)/report/*.png)"
 
 ## test: setup, then every unit test and every rostest, one pytest summary at the end
 test: setup

@@ -107,8 +107,8 @@ def results_block(stats: Stats, real_elapsed: float, comm_delay: float) -> str:
 class ResultWriter:
     """Writes one experiment's files under ``prefix`` (parent folders are created).
 
-    ``idleness.csv`` and ``timeresults.csv`` are created with their headers at once;
-    ``results.txt`` on the first cycle block; ``info.csv`` by :meth:`write_info`, written to a
+    ``idleness.csv`` and ``timeresults.csv`` are created with their headers at once,
+    ``results.txt`` empty (a block is appended per complete patrol cycle); ``info.csv`` by :meth:`write_info`, written to a
     temporary file and renamed, so it is either complete or absent.
     """
 
@@ -125,6 +125,8 @@ class ResultWriter:
         self._time = open(prefix + "_timeresults.csv", "w", encoding="utf-8")
         self._time.write(TIMERESULTS_HEADER + "\n")
         self._time.flush()
+        # results.txt exists from the start (empty until the first complete patrol cycle)
+        open(prefix + "_results.txt", "a", encoding="utf-8").close()
         self.info_written = False
 
     def path(self, suffix: str) -> str:
