@@ -77,7 +77,7 @@ def boxplot_figure(title, boxes, colors):
 def timeplot_figure(title, samples, n_robots):
     """Scatter of each idleness sample at its (simulated) visit time, coloured by robot,
     with the running mean of all samples so far."""
-    fig = Figure(figsize=(9.0, 4.0))
+    fig = Figure(figsize=(10.0, 4.0))
     ax = fig.add_subplot(1, 1, 1)
     t = samples["Time"].to_numpy(dtype=float)
     y = samples["Idleness"].to_numpy(dtype=float)
@@ -93,7 +93,8 @@ def timeplot_figure(title, samples, n_robots):
                        label=f"robot {rid}" if len(ids) <= 12 else None)
         run_mean = np.cumsum(y[order]) / np.arange(1, t.size + 1)
         ax.plot(t[order], run_mean, color="black", lw=1.5, label="running mean")
-        ax.legend(loc="upper left", fontsize=7, ncol=min(6, len(ids) + 1), framealpha=0.8)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, framealpha=0.8,
+                  ncol=1 if len(ids) <= 14 else 2, borderaxespad=0.0)
         ax.set_ylim(bottom=0, top=max(1.0, float(y.max())) * 1.15)
     else:
         ax.text(0.5, 0.5, "no idleness samples", transform=ax.transAxes, ha="center")
