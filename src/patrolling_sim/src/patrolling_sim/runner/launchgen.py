@@ -27,7 +27,8 @@ def _num(v):
     return repr(float(v))
 
 
-def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi / 2):
+def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi / 2,
+                    rviz_config=None):
     """Return the launch XML (str) for ``cfg`` with robots at ``positions`` [(x, y)].
 
     Args:
@@ -36,6 +37,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
         run_prefix: the result-file prefix the monitor must use (``.../<date>``), so every
             file of the run shares it.
         snapshot_dir: if set, the simulator saves periodic PNG snapshots there.
+        rviz_config: rviz config file for ``cfg.rviz`` (default ``launch/patrol.rviz``).
     """
     root = paths.data_root()
     yaml_path, graph_path = (os.path.abspath(p) for p in paths.map_files(cfg.map))
@@ -106,6 +108,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     if cfg.rviz:
         a("")
         a('  <node pkg="rviz" type="rviz" name="rviz" '
-          f'args={_attr("-d " + os.path.join(root, "launch", "patrol.rviz"))} output="log"/>')
+          f'args={_attr("-d " + (rviz_config or os.path.join(root, "launch", "patrol.rviz")))} '
+          'output="log"/>')
     a("</launch>")
     return "\n".join(L) + "\n"

@@ -204,9 +204,17 @@ class Experiment:
             snap = self.prefix + "_snapshots"
             os.makedirs(snap, exist_ok=True)
         self.snapshot_dir = snap
+        rviz_config = None
+        if cfg.rviz:
+            # an rviz view of exactly this team, centred on this map, kept with the results
+            from ..report.rviz_config import experiment_config_text
+            rviz_config = self.prefix + "_patrol.rviz"
+            with open(rviz_config, "w", encoding="utf-8") as f:
+                f.write(experiment_config_text(cfg.robots, cfg.map))
         self.launch_path = self.prefix + "_experiment.launch"
         with open(self.launch_path, "w", encoding="utf-8") as f:
-            f.write(generate_launch(cfg, positions, self.prefix, snapshot_dir=snap))
+            f.write(generate_launch(cfg, positions, self.prefix, snapshot_dir=snap,
+                                    rviz_config=rviz_config))
         return self.prefix
 
     def run(self):
