@@ -115,3 +115,16 @@ def test_cli(tmp_path):
                           "--alg", "XX", "--results-dir", str(tmp_path)],
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "unknown algorithm 'XX'" in bad.stderr
+
+
+@pytest.mark.parametrize("alg", ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS",
+                                 "CBLS", "DTAG", "DTAP"])
+@pytest.mark.parametrize("mapname,n", [("1r5", 3), ("1r5", 8), ("cumberland", 8)])
+def test_every_algorithm_runs_crowded_teams(alg, mapname, n, tmp_path):
+    """Many robots on few vertices, with delay and loss: time advances, every vertex is
+    visited, the run ends (a zero-time decision loop would hang or explode here)."""
+    sim, s = run(tmp_path, map=mapname, robots=n, alg=alg, duration=600, comm_delay=0.5,
+                 loss=0.1, seed=1)
+    assert sim.termination == "TIMEOUT"
+    assert s.n_samples > 0
+    assert all(v >= 0 for v in sim.monitor.visits), f"{alg} left vertices unvisited"

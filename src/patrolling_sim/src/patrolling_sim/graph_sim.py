@@ -33,6 +33,9 @@ from .monitor_core import MonitorCore, Stats
 from .results import ResultWriter, RunInfo, default_prefix, hostname, timestamp
 
 TIMERESULTS_PERIOD = 900.0
+#: shortest trip (s): a goal on the robot's own vertex still takes one navigation cycle, so
+#: simulated time always advances between two decisions of a robot
+MIN_TRIP = 0.5
 
 
 @dataclass
@@ -168,7 +171,8 @@ class GraphSimulator:
         robot.cum = cum
         robot.depart = t0
         trip = robot.trip
-        self.schedule(t0 + cum[-1] / self.cfg.speed, lambda: self._arrived(robot, trip))
+        self.schedule(t0 + max(MIN_TRIP, cum[-1] / self.cfg.speed),
+                      lambda: self._arrived(robot, trip))
 
     def redirect(self, robot, vertex):
         """Head to ``vertex`` from the next graph vertex on the current trip."""

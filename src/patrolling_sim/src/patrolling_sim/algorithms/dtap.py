@@ -93,7 +93,9 @@ class DTASSIPart(PatrolStrategy):
         if self.won is not None and self.won != u:
             nxt = self.won
         else:
-            nxt = self._best_candidate(u, now, {u}) or u
+            nxt = self._best_candidate(u, now, {u})
+            if nxt is None:             # a one-vertex graph
+                nxt = u
         self.won = None
         self.best_bid.pop(nxt, None)
         self.gi.advance(now)[nxt] = 0.0
