@@ -4,8 +4,9 @@
 mode "fake": drives the robot with cmd_vel (odometry drifts), then checks that the tf
 map->robot_0/odom composed with odom equals the ground truth, and that amcl_pose does.
 mode "amcl": sends move_base goals (~goals "x y; x y") so the robot drives; checks that
-amcl_pose converges (final error < ~max_err_xy / ~max_err_a, mean over the second half
-< ~mean_err_xy), that particlecloud is published and global_localization is served.
+amcl_pose converges (final error < ~max_err_xy / ~max_err_a; after ~converge_updates
+updates the error must have dropped below ~converge_err; from then on the mean error
+< ~mean_err_xy and the maximum < ~max_err_after), that particlecloud is published and global_localization is served.
 """
 import math
 import sys
@@ -129,17 +130,27 @@ class LocalizationTest(unittest.TestCase):
         rospy.loginfo("error series (m): %s", " ".join(f"{e[0]:.2f}" for e in errs))
         self.assertGreater(len(errs), 10, f"only {len(errs)} amcl_pose updates")
         first = errs[0]
-        half = errs[len(errs) // 2:]
+        # converged = first update with an error below ~converge_err; it must come within
+        # ~converge_updates updates; the mean / max checks apply from there on
+        conv_err = float(rospy.get_param("~converge_err", 0.25))
+        limit = int(rospy.get_param("~converge_updates", len(errs) // 2))
+        skip = next((k for k, e in enumerate(errs) if e[0] < conv_err), len(errs))
+        self.assertLessEqual(skip, limit, f"not converged below {conv_err} m within {limit} "
+                             f"updates")
+        half = errs[skip:]
         mean_xy = sum(e[0] for e in half) / len(half)
         final = errs[-1]
         msg = (f"{len(errs)} updates; first error {first[0]:.2f} m {first[1]:.2f} rad; final "
-               f"{final[0]:.3f} m {final[1]:.3f} rad; mean (2nd half) {mean_xy:.3f} m; max (2nd "
-               f"half) {max(e[0] for e in half):.3f} m")
+               f"{final[0]:.3f} m {final[1]:.3f} rad; converged after {skip} updates; then mean {mean_xy:.3f} m; "
+               f"max {max(e[0] for e in half):.3f} m; sim time driven "
+               f"{(self.est[-1][0] - self.est[0][0]) * 1e-9:.0f} s")
         rospy.loginfo(msg)
         sys.stderr.write(msg + "\n")
         self.assertLess(final[0], float(rospy.get_param("~max_err_xy", 0.3)), msg)
         self.assertLess(final[1], float(rospy.get_param("~max_err_a", 0.2)), msg)
         self.assertLess(mean_xy, float(rospy.get_param("~mean_err_xy", 0.2)), msg)
+        self.assertLess(max(e[0] for e in half), float(rospy.get_param("~max_err_after", 0.5)),
+                        msg)
         self.assertGreater(self.clouds, 0, "no particlecloud")
         rospy.wait_for_service("/robot_0/global_localization", 5)
 
