@@ -1,0 +1,77 @@
+#!/usr/bin/python3
+"""Graph-mode benchmark: wall time and peak memory to simulate one hour of patrolling.
+
+For each map, team size and algorithm, one run of ``--duration`` simulated seconds in a fresh
+subprocess (so peak RSS is that run's own), no result files written. Prints a Markdown table
+(and writes it to ``--out``).
+
+Usage:
+    bench/graph_sim_bench.py [--maps grid cumberland broughton] [--robots 1 4 12]
+                             [--algs ...] [--duration 3600] [--out docs/benchmarks/graph_sim.md]
+"""
+import argparse
+import datetime
+import json
+import os
+import platform
+import subprocess
+import sys
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+ALGS = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
+
+CHILD = r"""
+import json, resource, sys, time
+sys.path.insert(0, %r)
+from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator
+cfg = GraphSimConfig(map=%r, robots=%d, alg=%r, duration=%f, seed=1)
+t0 = time.perf_counter()
+sim = GraphSimulator(cfg)
+t1 = time.perf_counter()
+s = sim.run(write=False)
+t2 = time.perf_counter()
+print(json.dumps(dict(setup=t1 - t0, run=t2 - t1, rss=resource.getrusage(
+    resource.RUSAGE_SELF).ru_maxrss / 1024, visits=s.total_visits, avg=s.global_avg,
+    mx=s.global_max)))
+"""
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--maps", nargs="+", default=["grid", "cumberland", "broughton"])
+    ap.add_argument("--robots", nargs="+", type=int, default=[1, 4, 12])
+    ap.add_argument("--algs", nargs="+", default=ALGS)
+    ap.add_argument("--duration", type=float, default=3600.0)
+    ap.add_argument("--out", default=None)
+    a = ap.parse_args()
+    src = os.path.join(ROOT, "src", "patrolling_sim", "src")
+    lines = [f"Graph mode, {a.duration:.0f} s simulated per run, seed 1, no files written. "
+             f"Machine: {platform.node()}, {os.cpu_count()} cores, "
+             f"{platform.processor() or platform.machine()}; {datetime.date.today()}.",
+             "Command: `bench/graph_sim_bench.py " + " ".join(sys.argv[1:]) + "`", "",
+             "| map | N | alg | setup (s) | run (s) | speed (x real time) | peak RSS (MB) | "
+             "visits | avg idl (s) | max idl (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    print("\n".join(lines), flush=True)
+    for m in a.maps:
+        for n in a.robots:
+            for alg in a.algs:
+                out = subprocess.run([sys.executable, "-c",
+                                      CHILD % (src, m, n, alg, a.duration)],
+                                     capture_output=True, text=True, timeout=900)
+                if out.returncode != 0:
+                    row = f"| {m} | {n} | {alg} | failed: {out.stderr.strip().splitlines()[-1]} |"
+                else:
+                    r = json.loads(out.stdout)
+                    row = (f"| {m} | {n} | {alg} | {r['setup']:.2f} | {r['run']:.2f} | "
+                           f"{a.duration / max(r['run'], 1e-6):,.0f} | {r['rss']:.0f} | "
+                           f"{r['visits']} | {r['avg']:.1f} | {r['mx']:.1f} |")
+                lines.append(row)
+                print(row, flush=True)
+    if a.out:
+        with open(a.out, "w", encoding="utf-8") as f:
+            f.write("# Graph-mode simulator benchmark\n\n" + "\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
