@@ -231,11 +231,9 @@ class PatrolAgent:
         holder = {}
 
         def fire(_event):
-            self.timers.discard(holder.get("t"))
-            if rospy.is_shutdown() or self.phase == "ended":
-                return
-            with self.lock:
-                if self.phase == "ended":
+            with self.lock:           # the creator holds the lock until holder is filled
+                self.timers.discard(holder.get("t"))
+                if rospy.is_shutdown() or self.phase == "ended":
                     return
                 try:
                     fn()
@@ -243,9 +241,10 @@ class PatrolAgent:
                     rospy.logerr("robot %d: error in timed callback: %s", self.id, e)
                     raise
 
-        t = rospy.Timer(rospy.Duration(max(float(delay), 1e-3)), fire, oneshot=True)
-        holder["t"] = t
-        self.timers.add(t)
+        with self.lock:
+            t = rospy.Timer(rospy.Duration(max(float(delay), 1e-3)), fire, oneshot=True)
+            holder["t"] = t
+            self.timers.add(t)
         return t
 
     def publish(self, data):
