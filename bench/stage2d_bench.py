@@ -10,7 +10,8 @@ memory, for several maps and team sizes, in three laser modes:
 Each run: own rosmaster on a free port, node started with the map and computed start
 positions (scripts/graph_tool.py startposes), warm-up, then a measuring window. The RTF is
 sim seconds per wall second over the window (from the node's periodic log lines); CPU% is the node's
-user+system time over the window (100 % = one core); RSS is the node's resident memory.
+user+system time over the window (100 % = one core); "sim s per node CPU s" = RTF / (CPU% / 100),
+a figure less sensitive to other load on the machine; RSS is the node's resident memory.
 
   /usr/bin/python3 bench/stage2d_bench.py                       # default matrix, markdown table
   /usr/bin/python3 bench/stage2d_bench.py --maps cumberland --robots 12 200 --modes calc
@@ -150,6 +151,7 @@ def run_one(base_env, map_name, n, mode, warmup, window):
         return {
             "map": map_name, "robots": n, "mode": mode,
             "rtf": (s1 - s0) / (w1 - w0),
+            "sim_per_cpu": (s1 - s0) / (w1 - w0) / max(1e-9, (c1 - c0) / (w_end - w_start)),
             "cpu": 100.0 * (c1 - c0) / (w_end - w_start),
             "sub_cpu": 100.0 * (cs1 - cs0) / (w_end - w_start) if sub else None,
             "rss": rss,
@@ -190,8 +192,8 @@ def main():
     env = ros_env()
     print(f"<!-- {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, "
           f"{os.cpu_count()} cores, {platform.processor() or platform.machine()} -->")
-    print("| map | robots | lasers | RTF (speedup 0) | node CPU % | node RSS MB | subscriber CPU % | load avg |")
-    print("|---|---:|---|---:|---:|---:|---:|---:|")
+    print("| map | robots | lasers | RTF (speedup 0) | sim s per node CPU s | node CPU % | node RSS MB | subscriber CPU % | load avg |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for m in args.maps:
         for n in args.robots:
             for mode in args.modes:
@@ -200,10 +202,10 @@ def main():
                 try:
                     r = run_one(env, m, n, mode, args.warmup, args.window)
                 except (RuntimeError, subprocess.TimeoutExpired) as e:
-                    print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | | |", flush=True)
+                    print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | | | |", flush=True)
                     continue
                 sub = f"{r['sub_cpu']:.0f}" if r["sub_cpu"] is not None else ""
-                print(f"| {m} | {n} | {mode} | {r['rtf']:.1f} | {r['cpu']:.0f} | {r['rss']:.0f} | {sub} | {r['load']:.1f} |",
+                print(f"| {m} | {n} | {mode} | {r['rtf']:.1f} | {r['sim_per_cpu']:.1f} | {r['cpu']:.0f} | {r['rss']:.0f} | {sub} | {r['load']:.1f} |",
                       flush=True)
 
 
