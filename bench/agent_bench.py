@@ -30,13 +30,13 @@ sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
 CLK = os.sysconf("SC_CLK_TCK")
 GO_WAITER = """
-import sys, rospy
+import sys, threading, rospy
 from std_msgs.msg import Int16MultiArray
+go = threading.Event()
 rospy.init_node("bench_go_waiter", anonymous=True)
-while not rospy.is_shutdown():
-    m = rospy.wait_for_message("/results", Int16MultiArray, timeout=150)
-    if list(m.data) == [-1, 10, 100]:
-        sys.exit(0)
+rospy.Subscriber("/results", Int16MultiArray,
+                 lambda m: list(m.data) == [-1, 10, 100] and go.set(), queue_size=1000)
+sys.exit(0 if go.wait(170) else 1)
 """
 
 
