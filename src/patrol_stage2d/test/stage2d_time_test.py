@@ -83,5 +83,53 @@ class Stage2DTimeTest(unittest.TestCase):
         self.assertAlmostEqual(float(np.std(diff)), noise * np.sqrt(2), delta=0.2 * noise * np.sqrt(2))
 
 
+    def test_laser_geometry(self):
+        """Every 10th beam of robot 0 against an independent brute-force ray march over the
+        map image (walls) and the other robots' discs (~check_geometry)."""
+        if not rospy.get_param("~check_geometry", False):
+            self.skipTest("geometry check not configured")
+        import math
+        import cv2
+        import yaml
+        with open(rospy.get_param("/stage2d/map")) as f:
+            meta = yaml.safe_load(f)
+        img = cv2.imread(os.path.join(os.path.dirname(rospy.get_param("/stage2d/map")), meta["image"]),
+                         cv2.IMREAD_GRAYSCALE)
+        occ = ((255.0 - img) / 255.0 > meta["occupied_thresh"])[::-1, :]
+        res = meta["resolution"]
+        ox, oy = meta["origin"][:2]
+        p = [float(v) for v in rospy.get_param("/stage2d/poses").split()]
+        robots = [(p[3 * i], p[3 * i + 1], p[3 * i + 2]) for i in range(len(p) // 3)]
+        noise = rospy.get_param("/stage2d/laser_noise", 0.0)
+        x, y, th = robots[0]
+        lx, ly = x + 0.15 * math.cos(th), y + 0.15 * math.sin(th)
+        s = rospy.wait_for_message("/robot_0/base_scan", LaserScan, 20)
+        bad = []
+        n = 0
+        for b in range(0, len(s.ranges), 10):
+            a = th + s.angle_min + b * s.angle_increment
+            c, sn = math.cos(a), math.sin(a)
+            exp = s.range_max
+            t = 0.0
+            while t < s.range_max:
+                i = int(math.floor((lx + c * t - ox) / res))
+                j = int(math.floor((ly + sn * t - oy) / res))
+                if i < 0 or j < 0 or j >= occ.shape[0] or i >= occ.shape[1] or occ[j, i]:
+                    exp = t
+                    break
+                t += 0.004
+            for (rx, ry, _) in robots[1:]:
+                ex, ey = rx - lx, ry - ly
+                tc = ex * c + ey * sn
+                d2 = ex * ex + ey * ey - tc * tc
+                if tc > 0 and d2 <= 0.225 ** 2:
+                    exp = min(exp, tc - math.sqrt(0.225 ** 2 - d2))
+            n += 1
+            if abs(s.ranges[b] - exp) > res + 4 * noise + 0.005:
+                bad.append((b, round(s.ranges[b], 3), round(exp, 3)))
+        self.assertGreater(n, 100)
+        self.assertEqual(bad, [], f"beams off the map geometry (beam, scan, expected): {bad}")
+
+
 if __name__ == "__main__":
     rostest.rosrun("patrol_stage2d", "stage2d_time", Stage2DTimeTest, sys.argv)
