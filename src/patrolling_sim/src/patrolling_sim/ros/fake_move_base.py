@@ -16,6 +16,9 @@ Private parameters:
                                after ``~abort_after`` s, the robot not moving meanwhile
                                (the failure path of the agent)
     ~abort_after (float, 0.3)  s
+    ~publish_clock (bool, false)  publish /clock itself (for ``/use_sim_time`` true):
+                               sim time = wall time since start x ``~time_scale``
+    ~time_scale (float, 1.0)   speed-up of the published clock
 
 Start positions come from /initial_pos (flat x0,y0,x1,y1,...).
 Counters for tests are set as parameters ``~stats/robot_<i>/{goals,succeeded,aborted,
@@ -23,12 +26,14 @@ cancelled,clear_costmaps,cmd_vel}`` once per second.
 """
 import math
 import threading
+import time
 
 import actionlib
 
 import rospy
 from actionlib_msgs.msg import GoalStatus  # noqa: F401  (documentation of states)
 from geometry_msgs.msg import Twist
+from rosgraph_msgs.msg import Clock
 from move_base_msgs.msg import MoveBaseAction, MoveBaseFeedback, MoveBaseResult
 from std_srvs.srv import Empty, EmptyResponse
 
@@ -171,9 +176,27 @@ class FakeMoveBase:
         rospy.set_param("~stats", snap)
 
 
+def start_clock(scale, hz=100.0):
+    """Publish /clock from a wall-time thread (sim = wall elapsed x scale)."""
+    pub = rospy.Publisher("/clock", Clock, queue_size=1)
+    t0 = time.time()
+
+    def loop():
+        while not rospy.is_shutdown():
+            pub.publish(Clock(clock=rospy.Time.from_sec((time.time() - t0) * scale)))
+            time.sleep(1.0 / hz)
+    threading.Thread(target=loop, daemon=True).start()
+
+
 def main():
     import sys
     rospy.init_node("fake_move_base")
+    if rospy.get_param("~publish_clock", False):
+        scale = float(rospy.get_param("~time_scale", 1.0))
+        if scale <= 0:
+            sys.stderr.write(f"fake_move_base: error: ~time_scale must be > 0, got {scale}\n")
+            return 2
+        start_clock(scale)
     try:
         FakeMoveBase()
     except (ValueError, KeyError, PatrolInputError) as e:
