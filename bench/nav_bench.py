@@ -213,7 +213,8 @@ def live_run(loc, n, duration, env):
                 p.wait(timeout=20)
             except subprocess.TimeoutExpired:
                 os.killpg(p.pid, 9)
-    return cpu, out.strip()
+    lines = [ln for ln in out.splitlines() if ln.startswith("goals ")]
+    return cpu, lines[-1] if lines else "driver printed no result"
 
 
 def drive(n, duration):
