@@ -8,7 +8,8 @@ memory, for several maps and team sizes, in three laser modes:
         deserialisation) -- the subscriber's CPU is reported separately
 
 Each run: own rosmaster on a free port, node started with the map and computed start
-positions (scripts/graph_tool.py startposes), warm-up, then a measuring window. The RTF is
+positions (scripts/graph_tool.py startposes); by default every robot turns on the spot (one
+latched cmd_vel, watchdog off), so every scan is recomputed; warm-up, then a measuring window. The RTF is
 sim seconds per wall second over the window (from the node's periodic log lines); CPU% is the node's
 user+system time over the window (100 % = one core); "sim s per node CPU s" = RTF / (CPU% / 100),
 a figure less sensitive to other load on the machine; RSS is the node's resident memory.
@@ -31,6 +32,19 @@ import time
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 BINARY = os.path.join(ROOT, "devel", "lib", "patrol_stage2d", "stage2d_node")
 TICK = os.sysconf("SC_CLK_TCK")
+
+SPINNER = r"""
+import sys, rospy
+from geometry_msgs.msg import Twist
+rospy.init_node("bench_spinner", anonymous=True)
+n = int(sys.argv[1])
+t = Twist()
+t.angular.z = 0.5
+pubs = [rospy.Publisher(f"/robot_{i}/cmd_vel", Twist, queue_size=1, latch=True) for i in range(n)]
+for p in pubs:
+    p.publish(t)
+rospy.spin()
+"""
 
 SUBSCRIBER = r"""
 import sys, rospy
@@ -100,7 +114,7 @@ def read_log(stream, out):
             out.append((float(m.group(1)), float(m.group(2))))
 
 
-def run_one(base_env, map_name, n, mode, warmup, window):
+def run_one(base_env, map_name, n, mode, warmup, window, motion):
     port = free_port()
     env = dict(base_env, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
     procs = []
@@ -126,10 +140,14 @@ def run_one(base_env, map_name, n, mode, warmup, window):
         poses = start_poses(map_name, n)
         node = spawn(["stdbuf", "-oL", BINARY, "__name:=stage2d", f"_map:={yaml_path}",
                       f"_poses:={poses}", "_speedup:=0", "_log_period:=0.5",
+                      "_cmd_vel_timeout:=1e9",
                       f"_scan_always:={'true' if mode == 'calc' else 'false'}"],
                      stdout=subprocess.PIPE)
         samples = []
         threading.Thread(target=read_log, args=(node.stdout, samples), daemon=True).start()
+        if motion == "spin":
+            # every robot turns on the spot (one latched command), so no scan can be reused
+            spawn(["/usr/bin/python3", "-c", SPINNER, str(n)])
         sub = None
         if mode == "sub":
             sub = spawn(["/usr/bin/python3", "-c", SUBSCRIBER, str(n)])
@@ -179,7 +197,10 @@ def main():
                     choices=["none", "calc", "sub"])
     ap.add_argument("--sub-max-robots", type=int, default=32,
                     help="run the 'sub' mode only up to this many robots (rospy subscriber cost)")
-    ap.add_argument("--warmup", type=float, default=2.0)
+    ap.add_argument("--motion", choices=["spin", "still"], default="spin",
+                    help="spin: every robot turns on the spot (default); still: robots stand "
+                         "(a standing robot reuses its wall ranges)")
+    ap.add_argument("--warmup", type=float, default=3.0)
     ap.add_argument("--window", type=float, default=5.0)
     args = ap.parse_args()
     # SIGTERM -> SystemExit, so the finally blocks stop this run's master and node
@@ -191,7 +212,8 @@ def main():
             sys.exit(f"stage2d_bench: error: --robots: {n} is not >= 1")
     env = ros_env()
     print(f"<!-- {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, "
-          f"{os.cpu_count()} cores, {platform.processor() or platform.machine()} -->")
+          f"{os.cpu_count()} cores, {platform.processor() or platform.machine()}, "
+          f"robots {args.motion} -->")
     print("| map | robots | lasers | RTF (speedup 0) | sim s per node CPU s | node CPU % | node RSS MB | subscriber CPU % | load avg |")
     print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for m in args.maps:
@@ -200,7 +222,7 @@ def main():
                 if mode == "sub" and n > args.sub_max_robots:
                     continue
                 try:
-                    r = run_one(env, m, n, mode, args.warmup, args.window)
+                    r = run_one(env, m, n, mode, args.warmup, args.window, args.motion)
                 except (RuntimeError, subprocess.TimeoutExpired) as e:
                     print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | | | |", flush=True)
                     continue

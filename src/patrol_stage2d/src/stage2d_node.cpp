@@ -151,6 +151,10 @@ struct Robot {
   // laser
   std::vector<float> ranges;
   bool scan_valid = false;
+  // wall-only ranges of the last scan and the laser pose they were computed at: a robot that
+  // has not moved reuses them (the walls never change); robots and noise are applied after
+  std::vector<float> wall_ranges;
+  double wall_x = NAN, wall_y = NAN, wall_yaw = NAN;
   std::mt19937 rng;
   // contacts
   long wall_contacts = 0, robot_contacts = 0;
@@ -587,13 +591,19 @@ void Stage2D::scan_robot(Robot& r) {
   double c = std::cos(yaw), s = std::sin(yaw);
   double lx = p.x + laser_x_ * c, ly = p.y + laser_x_ * s;
   const int nb = laser_samples_;
-  std::vector<float>& out = r.ranges;
-  out.resize(nb);
-  for (int b = 0; b < nb; ++b) {
-    // beam direction in the map frame
-    double dx = beam_cos_[b] * c - beam_sin_[b] * s, dy = beam_cos_[b] * s + beam_sin_[b] * c;
-    out[b] = static_cast<float>(map_.raycast_dir(lx, ly, dx, dy, laser_range_max_));
+  if (!(lx == r.wall_x && ly == r.wall_y && yaw == r.wall_yaw) || static_cast<int>(r.wall_ranges.size()) != nb) {
+    r.wall_ranges.resize(nb);
+    for (int b = 0; b < nb; ++b) {
+      // beam direction in the map frame
+      double dx = beam_cos_[b] * c - beam_sin_[b] * s, dy = beam_cos_[b] * s + beam_sin_[b] * c;
+      r.wall_ranges[b] = static_cast<float>(map_.raycast_dir(lx, ly, dx, dy, laser_range_max_));
+    }
+    r.wall_x = lx;
+    r.wall_y = ly;
+    r.wall_yaw = yaw;
   }
+  std::vector<float>& out = r.ranges;
+  out = r.wall_ranges;
   // other robots: analytic ray-circle intersection over the beams their disc spans
   const double amin = -laser_fov_ / 2, inc = nb > 1 ? laser_fov_ / (nb - 1) : 1.0;
   const double r2 = radius_ * radius_;
