@@ -38,7 +38,9 @@ from .proctree import ProcessTree
 from .rosenv import experiment_env, free_port
 
 RESULT_SUFFIXES = ("idleness.csv", "timeresults.csv", "results.txt", "info.csv")
-NORMAL_ENDS = ("TIMEOUT", "CYCLES")
+#: terminations that count as a successful run (STOPPED: /simulation_running set false,
+#: e.g. by the GUI's Stop button)
+NORMAL_ENDS = ("TIMEOUT", "CYCLES", "STOPPED")
 
 
 @dataclass
