@@ -154,7 +154,9 @@ def test_gbs_shares_idleness():
     s.next_vertex(0.0)
     assert d.sent[-1] == [0, 31, 0]
     s.on_message([1, 31, 7], 20.0)
-    assert s.idleness[7] == 0.0 and s.idleness[8] == pytest.approx(20.0)
+    assert s.last_visit[7] == 20.0 and s.idleness[7] == 0.0
+    s.update_idleness(20.0)                     # refreshed at the next decision
+    assert s.idleness[8] == pytest.approx(20.0)
 
 
 def test_sebs_avoids_teammates_intentions():
@@ -297,3 +299,22 @@ def test_dtap_auction_between_two_robots():
     assert {40, 41}.issubset(kinds)
     assert bots[0].algorithm_params == "3,1,0,-2,0,0"
     assert bots[0].won is None or bots[0].won != bots[1].won or bots[0].won is None
+
+
+@pytest.mark.parametrize("mapname", ["grid", "example", "cumberland", "1r5", "broughton",
+                                     "DIAG_labs", "DIAG_floor1", "ctcv", "move_base_arena"])
+def test_cgg_route_within_10_percent_of_best_found(mapname):
+    """The shared CGG route is a closed walk covering every vertex, at most 1.1 x the best
+    closed walk a harder search finds (more restarts, other seeds)."""
+    from patrolling_sim.routes import tsp_tour
+    g = graph(mapname)
+    r = closed_route(g)
+    assert r[0] == r[-1] and set(r) == set(range(g.n))
+    for a, b in zip(r, r[1:]):
+        assert g.arc_cost(a, b) is not None
+    verts = list(range(g.n))
+    best = min(
+        sum(g.dist[t[i], t[(i + 1) % len(t)]] for i in range(len(t)))
+        for t in (tsp_tour(g.dist, verts, seed=s, restarts=6 if g.n > 100 else 16)
+                  for s in ((7,) if g.n > 100 else (7, 99, 2024))))
+    assert route_cost(g, r) <= 1.1 * best + 1e-6

@@ -113,6 +113,15 @@ def closed_route(pgraph, vertices: Optional[Sequence[int]] = None, seed: int = 1
     verts = sorted(range(pgraph.n) if vertices is None else set(vertices))
     if len(verts) == 1:
         return [verts[0], verts[0]]
+    # every robot of a team asks for the same route: computed once per graph object
+    cache = pgraph.__dict__.setdefault("_closed_route_cache", {})
+    key = (tuple(verts), seed)
+    if key not in cache:
+        cache[key] = _closed_route(pgraph, verts, seed)
+    return list(cache[key])
+
+
+def _closed_route(pgraph, verts, seed):
     D, paths = _subgraph_metric(pgraph, tuple(verts))
     tour = tsp_tour(D, verts, seed=seed)
     walk = [tour[0]]
@@ -219,6 +228,14 @@ def balanced_partition(pgraph, k: int, vertices: Optional[Sequence[int]] = None)
     verts = sorted(range(pgraph.n) if vertices is None else vertices)
     if k < 1:
         raise ValueError("k must be >= 1")
+    cache = pgraph.__dict__.setdefault("_partition_cache", {})
+    key = (tuple(verts), k)
+    if key not in cache:
+        cache[key] = _balanced_partition(pgraph, k, verts)
+    return [list(p) for p in cache[key]]
+
+
+def _balanced_partition(pgraph, k, verts):
     if k == 1:
         return [verts]
     if k >= len(verts):

@@ -49,7 +49,7 @@ class ConcurrentBayesianLearning(PatrolStrategy):
         self.avg[v] = (self.avg[v] * self.nvis[v] + idl) / (self.nvis[v] + 1)
         self.nvis[v] += 1
         self.last_visit[v] = now
-        self.update_idleness(now)
+        self.idleness[v] = 0.0          # the whole table is refreshed at each decision
 
     def cur(self, v):
         return (self.avg[v] * self.nvis[v] + self.idleness[v]) / (self.nvis[v] + 1)

@@ -1,40 +1,54 @@
 """Shared pieces of the DTA family (Farinelli, Iocchi, Nardi, "Distributed on-line dynamic
 task assignment for multi-robot patrolling", Autonomous Robots 41(6), 2017): a global
 idleness *estimate* that ages with time and is merged from teammates' type-40 messages."""
+import logging
+
+import numpy as np
+
 from .. import paths
 from ..dta_params import load_dta_params
 from .base import INT16_MAX, MSG_DTA_IDLENESS
 
 INT16_CAP = 32000
+log = logging.getLogger(__name__)
 
 
 class IdlenessEstimate:
-    """``gi[v]``: estimated idleness (s) of every vertex, advanced lazily to the clock."""
+    """``gi[v]``: estimated idleness (s) of every vertex (a numpy array), advanced lazily to
+    the clock."""
 
     def __init__(self, n, initial, now):
-        self.values = [float(initial)] * n
+        self.values = np.full(n, float(initial))
         self.t = now
+        self.clamped = 0                # payload entries clamped so far (logged once)
 
     def advance(self, now):
         dt = now - self.t
         if dt > 0:
-            self.values = [g + dt for g in self.values]
+            self.values += dt
             self.t = now
         return self.values
 
     def merge(self, received, now):
         """Take the smaller of own and received (message payload is 10 x seconds)."""
         g = self.advance(now)
-        for k, r in enumerate(received[:len(g)]):
-            g[k] = min(g[k], r / 10.0)
+        r = np.asarray(received[:len(g)], dtype=float) / 10.0
+        np.minimum(g[:len(r)], r, out=g[:len(r)])
 
     def encode(self, now, zero=None):
         """Payload ``I_0..I_{V-1}`` (int(10*gi), values above int16 replaced by 32000)."""
-        out = []
-        for k, g in enumerate(self.advance(now)):
-            x = 0 if k == zero else int(10 * g)
-            out.append(INT16_CAP if x > INT16_MAX else x)
-        return out
+        x = (10.0 * self.advance(now)).astype(np.int64)
+        if zero is not None:
+            x[zero] = 0
+        over = x > INT16_MAX
+        if over.any():
+            if not self.clamped:
+                k = int(np.argmax(over))
+                log.warning("idleness estimate %.0f s of vertex %d exceeds the int16 payload; "
+                            "sent as %d (the original's clamp)", self.values[k], k, INT16_CAP)
+            self.clamped += int(over.sum())
+            x[over] = INT16_CAP
+        return x.tolist()
 
 
 def dta_params(ctx, file_name, defaults):

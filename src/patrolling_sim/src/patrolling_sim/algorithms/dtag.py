@@ -12,7 +12,7 @@ with time, merged with teammates' estimates by taking the minimum). On reaching 
 entry as 0. If a teammate announces the same next goal, the robot with the higher id yields:
 it treats that vertex as visited, recomputes and redirects.
 """
-import math
+import numpy as np
 
 from .base import MSG_DTA_IDLENESS, PatrolStrategy, register
 from .dta_common import IdlenessEstimate, decode_idleness, dta_params
@@ -31,6 +31,7 @@ class DTAGreedy(PatrolStrategy):
         self.algorithm_params = ",".join(f"{self.p[k]:g}" for k in DEFAULTS)
         self.gi = None
         self.origin = ctx.start_position
+        self._origin_dist = None
 
     def start(self, start_vertex, now):
         super().start(start_vertex, now)
@@ -43,22 +44,25 @@ class DTAGreedy(PatrolStrategy):
         super().on_arrival(vertex, now)
         self.gi.advance(now)[vertex] = 0.0
 
-    def utility(self, u, v, g):
+    def utility(self, u, g):
+        """Utility of every vertex as a goal from u (numpy array)."""
         p = self.p
-        d = math.hypot(self.graph.pos[v][0] - self.origin[0], self.graph.pos[v][1] - self.origin[1])
-        return (p["theta_idleness"] * g[v] + p["theta_navigation"] * self.graph.dist[u, v]
-                + p["theta_distance_from_origin"] * d)
+        if self._origin_dist is None:
+            self._origin_dist = np.hypot(self.graph.pos[:, 0] - self.origin[0],
+                                         self.graph.pos[:, 1] - self.origin[1])
+        return (p["theta_idleness"] * g + p["theta_navigation"] * self.graph.dist[u]
+                + p["theta_distance_from_origin"] * self._origin_dist)
 
     def choose_next(self, now, exclude=()):
         u = self.current
-        g = self.gi.advance(now)
-        best, best_v = -math.inf, u
-        for v in range(self.graph.n):
-            if v != u and v not in exclude and self.graph.dist[u, v] < math.inf:
-                s = self.utility(u, v, g)
-                if s > best:
-                    best, best_v = s, v
-        return best_v
+        score = self.utility(u, self.gi.advance(now))
+        score[~np.isfinite(self.graph.dist[u])] = -np.inf
+        score[u] = -np.inf
+        for v in exclude:
+            score[v] = -np.inf
+        if not np.isfinite(score).any():
+            return u
+        return int(np.argmax(score))        # first maximum, as the original
 
     def next_vertex(self, now):
         v = super().next_vertex(now)

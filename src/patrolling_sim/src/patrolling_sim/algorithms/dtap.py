@@ -23,8 +23,7 @@ theta_hop -2, threshold 0, hist 0). After each arrival the robot broadcasts
 ``[id, 40, I_0..I_{V-1}, next]``. If it arrives before an auction is decided, it takes the
 best candidate by U.
 """
-import math
-import statistics
+import numpy as np
 
 from .base import (INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID, MSG_SSI_TASK_REQUEST,
                    PatrolStrategy, register)
@@ -58,10 +57,11 @@ class DTASSIPart(PatrolStrategy):
     def tasks(self):
         return sorted(v for v, (_, r) in self.best_bid.items() if r == self.id)
 
-    def utility(self, cv, v, g):
-        return (self.p["theta_idleness"] * g[v]
-                + self.p["theta_hop"] * self.graph.hops[cv, v] * self.graph.n
-                + self.p["theta_navigation"] * self.graph.dist[cv, v])
+    def utility(self, cv, g):
+        """U(cv, v) for every vertex v (numpy array)."""
+        return (self.p["theta_idleness"] * g
+                + self.p["theta_hop"] * self.graph.hops[cv] * self.graph.n
+                + self.p["theta_navigation"] * self.graph.dist[cv])
 
     def bid(self, v):
         if v in (self.next, self.won):
@@ -81,12 +81,13 @@ class DTASSIPart(PatrolStrategy):
 
     # -- decisions --------------------------------------------------------------------------
     def _best_candidate(self, cv, now, exclude):
-        g = self.gi.advance(now)
-        cands = [v for v in range(self.graph.n)
-                 if v not in exclude and self.graph.hops[cv, v] < math.inf]
-        if not cands:
+        u = self.utility(cv, self.gi.advance(now))
+        u[~np.isfinite(self.graph.hops[cv])] = -np.inf
+        for v in exclude:
+            u[v] = -np.inf
+        if not np.isfinite(u).any():
             return None
-        return max(cands, key=lambda v: (self.utility(cv, v, g), -v))
+        return int(np.argmax(u))            # first maximum: lowest id on ties
 
     def choose_next(self, now):
         u = self.current
@@ -141,7 +142,7 @@ class DTASSIPart(PatrolStrategy):
         if best[1] == self.id:
             self.won = v
             return
-        mean, sd = statistics.fmean(g), statistics.pstdev(g)
+        mean, sd = float(np.mean(g)), float(np.std(g))
         if self.graph.hops[cv, v] <= 1 and g[v] > mean + 2 * sd and best[0] != 0:
             self.won = v
             return

@@ -61,5 +61,7 @@ class GreedyBayesian(PatrolStrategy):
 
     def on_message(self, data, now):
         if len(data) >= 3 and data[1] == MSG_GBS_REACHED and 0 <= data[2] < self.graph.n:
+            # shared idleness: v counts as visited now (the whole table is refreshed at the
+            # next decision, on arrival)
             self.last_visit[data[2]] = now
-            self.update_idleness(now)
+            self.idleness[data[2]] = 0.0

@@ -44,5 +44,5 @@ class StateExchangeBayesian(PatrolStrategy):
     def on_message(self, data, now):
         if len(data) >= 4 and data[1] == MSG_SEBS_REACHED and 0 <= data[2] < self.graph.n:
             self.last_visit[data[2]] = now
-            self.update_idleness(now)
+            self.idleness[data[2]] = 0.0     # the table is refreshed at the next decision
             self.intention[data[0]] = data[3]
