@@ -64,22 +64,75 @@ def master_ports_closed(out):
         s.close()
 
 
-def test_headless_run_to_timeout(tmp_path):
-    p = start(["--map", "grid", "--robots", "2", "--alg", "CGG", "--loc", "fake_localization",
-               "--timeout", "90", "--speedup", "4"], tmp_path)
-    rc, out = finish(p, 300)
+def own_processes(marker):
+    """Pids whose command line mentions ``marker`` (the run's unique result prefix)."""
+    pids = []
+    for d in os.listdir("/proc"):
+        if d.isdigit() and int(d) != os.getpid():
+            try:
+                with open(f"/proc/{d}/cmdline", "rb") as f:
+                    if marker.encode() in f.read():
+                        pids.append(int(d))
+            except OSError:
+                pass
+    return pids
+
+
+def check_complete_run(prefix, out, n_vertices, team_size, alg):
+    """The acceptance checks of a finished run: files valid, >= 1 complete patrol cycle,
+    every vertex visited, nothing of the run left running."""
+    info, rows = check_files(prefix)
+    assert info["termination"] == "TIMEOUT" and info["algorithm"] == alg, out[-2000:]
+    assert info["team_size"] == team_size and info["nav_module"] == "spqrel_nav_lite"
+    assert info["complete_cycles"] >= 1, f"no complete patrol cycle:\n{out[-2000:]}"
+    visited = {int(r.split(";")[2]) for r in rows}
+    assert visited == set(range(n_vertices)), f"never revisited: {set(range(n_vertices)) - visited}"
+    assert {int(r.split(";")[1]) for r in rows} <= set(range(team_size))
+    # robots really drive: a grid edge is 5.7 m, the goal tolerance 0.4 m and the
+    # navigation goes <= 1 m/s, so one robot's reports are >= 4.9 s apart
+    for rid in range(team_size):
+        times = [float(r.split(";")[0]) for r in rows if int(r.split(";")[1]) == rid]
+        assert all(b - a >= 4.0 for a, b in zip(times, times[1:])), (rid, times)
+    assert os.path.isdir(prefix + "_logs") and os.listdir(prefix + "_logs")
+    assert master_ports_closed(out)
+    assert own_processes(prefix) == [], "processes of the run survived"
+    return info
+
+
+def test_cgg_four_robots_full_stack(tmp_path):
+    p = start(["--map", "grid", "--robots", "4", "--alg", "CGG", "--loc", "fake_localization",
+               "--timeout", "300", "--speedup", "5"], tmp_path)
+    rc, out = finish(p, 600)
     assert rc == 0, out[-3000:]
     assert "progress: sim" in out and "results: " in out
     (prefix,) = prefixes(tmp_path)
-    info, rows = check_files(prefix)
-    assert info["termination"] == "TIMEOUT" and info["algorithm"] == "CGG"
-    assert info["team_size"] == 2 and info["nav_module"] == "spqrel_nav_lite"
-    assert 89.0 <= info["sim_duration"] <= 100.0
-    assert len(rows) >= 4, "robots hardly moved:\n" + out[-2000:]
-    # robots really drive: a grid edge is 5.7 m, nav speed <= 1 m/s -> idleness >= 5.7 s
-    assert min(float(r.split(";")[3]) for r in rows) >= 5.0
-    assert os.path.isdir(prefix + "_logs") and os.listdir(prefix + "_logs")
-    assert master_ports_closed(out)
+    info = check_complete_run(prefix, out, 25, 4, "CGG")
+    assert 299.0 <= info["sim_duration"] <= 310.0
+
+
+def test_parallel_runs_do_not_mix(tmp_path):
+    """SEBS (4 robots, grid) and CR (1 robot, 1r5) at the same time, each with its own
+    master: both finish, and neither sees the other's robots or messages."""
+    a_dir, b_dir = tmp_path / "a", tmp_path / "b"
+    a_dir.mkdir()
+    b_dir.mkdir()
+    a = start(["--map", "grid", "--robots", "4", "--alg", "SEBS", "--loc", "fake_localization",
+               "--timeout", "300", "--speedup", "5"], a_dir)
+    b = start(["--map", "1r5", "--robots", "1", "--alg", "CR", "--loc", "fake_localization",
+               "--timeout", "120", "--speedup", "5"], b_dir)
+    rc_b, out_b = finish(b, 600)
+    rc_a, out_a = finish(a, 600)
+    assert rc_a == 0, out_a[-3000:]
+    assert rc_b == 0, out_b[-3000:]
+    (pa,) = prefixes(a_dir)
+    (pb,) = prefixes(b_dir)
+    check_complete_run(pa, out_a, 25, 4, "SEBS")
+    info_b, rows_b = check_files(pb)
+    assert info_b["team_size"] == 1 and {r.split(";")[1] for r in rows_b} <= {"0"}
+    assert all(0 <= int(r.split(";")[2]) < 12 for r in rows_b)     # 1r5 has 12 vertices
+    import re
+    ports = {re.search(r"master http://127\.0\.0\.1:(\d+)", o).group(1) for o in (out_a, out_b)}
+    assert len(ports) == 2
 
 
 def test_ctrl_c_keeps_complete_files(tmp_path):
@@ -107,22 +160,34 @@ def test_ctrl_c_keeps_complete_files(tmp_path):
 
 def test_original_positional_form_with_amcl(tmp_path):
     # MAP NROBOTS INITPOS ALG LOC NAV GWAIT COMMDELAY TERM TIMEOUT [CUSTOM_STAGE] [SPEEDUP]
-    p = start(["1r5", "1", "default", "CR", "AMCL", "spqrel_navigation", "0", "0", "xterm",
-               "60", "false", "3"], tmp_path)
-    rc, out = finish(p, 300)
+    p = start(["grid", "2", "default", "CGG", "AMCL", "spqrel_navigation", "0", "0", "xterm",
+               "600", "false", "5"], tmp_path)
+    rc, out = finish(p, 900)
     assert rc == 0, out[-3000:]
     (prefix,) = prefixes(tmp_path)
-    info, rows = check_files(prefix)
-    assert info["team_size"] == 1 and info["termination"] == "TIMEOUT"
-    assert info["total_visits"] >= 1 and rows, out[-2000:]      # a vertex was revisited
+    check_complete_run(prefix, out, 25, 2, "CGG")
 
 
 def test_bad_arguments_start_nothing(tmp_path):
     for args, needle in ((["--map", "atlantis", "--robots", "2", "--alg", "CR"], "atlantis"),
                          (["--map", "grid", "--robots", "2", "--alg", "NOPE"], "--alg"),
+                         (["--map", "grid", "--robots", "0", "--alg", "CR"], "--robots"),
+                         (["--map", "grid", "--robots", "two", "--alg", "CR"], "--robots"),
+                         (["--map", "grid", "--robots", "2", "--alg", "CR", "--timeout", "-5"],
+                          "--timeout"),
+                         (["grid", "2", "default", "CR", "AMCL", "ros", "x", "0", "xterm",
+                           "60"], "GWAIT"),
                          (["grid", "2", "default", "CR"], "needs 10 to 12 arguments")):
         r = subprocess.run(["/usr/bin/python3", START, *args, "--results-dir", str(tmp_path)],
                            capture_output=True, text=True, env=ros_env(), timeout=60)
         assert r.returncode == 2, (args, r.stderr)
         assert needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not glob.glob(f"{tmp_path}/**/*_config.yaml", recursive=True)
+    ro = tmp_path / "readonly"
+    ro.mkdir()
+    ro.chmod(0o500)
+    r = subprocess.run(["/usr/bin/python3", START, "--map", "grid", "--robots", "1",
+                        "--results-dir", str(ro / "sub")], capture_output=True, text=True,
+                       env=ros_env(), timeout=60)
+    if os.geteuid() != 0:                       # root may write anywhere
+        assert r.returncode == 2 and "--results-dir" in r.stderr, r.stderr
