@@ -188,7 +188,7 @@ def live_run(loc, n, duration, env):
                                "--duration", str(duration)], env=e, stdout=subprocess.PIPE,
                               text=True, start_new_session=True)
     try:
-        time.sleep(15)          # start-up (not measured)
+        time.sleep(10 + 1.5 * n)        # start-up (not measured)
         pids = {}
         for pid in descendants(proc.pid):
             name = node_of(pid)
@@ -242,7 +242,7 @@ def drive(n, duration):
         clients[i].send_goal(goal)
         active[i] = True
 
-    t_end = time.monotonic() + duration + 15
+    t_end = time.monotonic() + duration + 10 + 1.5 * n
     for i in range(n):
         send(i)
     while time.monotonic() < t_end and not rospy.is_shutdown():
