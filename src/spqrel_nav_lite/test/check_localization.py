@@ -19,6 +19,7 @@ import tf2_ros
 from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import Odometry
+from std_srvs.srv import Empty
 
 from spqrel_nav_lite.geometry import compose, normalize_angle, yaw_from_quaternion
 
@@ -48,7 +49,8 @@ class LocalizationTest(unittest.TestCase):
     def on_est(self, m):
         self.est.append((m.header.stamp.to_nsec(), pose_of(m.pose.pose)))
 
-    def on_cloud(self, _m):
+    def on_cloud(self, m):
+        self.last_cloud = m
         self.clouds += 1
 
     def error(self, est, stamp):
@@ -152,7 +154,17 @@ class LocalizationTest(unittest.TestCase):
         self.assertLess(max(e[0] for e in half), float(rospy.get_param("~max_err_after", 0.5)),
                         msg)
         self.assertGreater(self.clouds, 0, "no particlecloud")
+        # global localisation spreads the particles over the whole free space
         rospy.wait_for_service("/robot_0/global_localization", 5)
+        before = self.clouds
+        rospy.ServiceProxy("/robot_0/global_localization", Empty)()
+        t0 = rospy.get_time()
+        while self.clouds == before and rospy.get_time() - t0 < 10 and not rospy.is_shutdown():
+            rospy.sleep(0.1)
+        self.assertGreater(self.clouds, before, "no particlecloud after global_localization")
+        xs = [p.position.x for p in self.last_cloud.poses]
+        spread = max(xs) - min(xs)
+        self.assertGreater(spread, 10.0, f"global_localization: particles span only {spread:.1f} m")
 
 
 if __name__ == "__main__":

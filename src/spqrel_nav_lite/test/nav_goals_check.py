@@ -4,7 +4,8 @@
 ~goals: "x y EXPECT; x y EXPECT; ..." with EXPECT S (succeeded), A (aborted with a reason) or
 SA (either, e.g. goal behind a temporary obstacle). ~map: yaml (to compute the shortest path
 length); ~time_factor: a SUCCEEDED goal must take <= time_factor x shortest-path length at
-max speed 1 m/s (0 = no check; only for S goals); ~max_contacts (-1 = no check).
+max speed 1 m/s (0 = no check; only for S goals); ~max_contacts (-1 = no check);
+~simple_goal "x y": finally published on move_base_simple/goal, the robot must get there.
 """
 import math
 import sys
@@ -15,6 +16,7 @@ import rospy
 import rostest
 from actionlib_msgs.msg import GoalStatus
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Int32
 from std_srvs.srv import Empty
@@ -85,6 +87,23 @@ class NavGoals(unittest.TestCase):
                 self.assertLess(err, 0.45, line)
                 if factor > 0 and expect == "S" and math.isfinite(shortest):
                     self.assertLessEqual(dt, factor * shortest / 1.0 + 2.0, line)
+        simple = rospy.get_param("~simple_goal", "")
+        if simple:      # the move_base_simple/goal topic drives the robot too
+            sx, sy = (float(v) for v in simple.split())
+            pub = rospy.Publisher(f"/{ns}/move_base_simple/goal", PoseStamped, queue_size=1,
+                                  latch=True)
+            msg = PoseStamped()
+            msg.header.frame_id = "map"
+            msg.pose.position.x, msg.pose.position.y = sx, sy
+            msg.pose.orientation.w = 1.0
+            pub.publish(msg)
+            t0 = rospy.get_time()
+            while rospy.get_time() - t0 < 120 and not rospy.is_shutdown() and \
+                    math.hypot(self.truth[0] - sx, self.truth[1] - sy) > 0.45:
+                rospy.sleep(0.5)
+            err = math.hypot(self.truth[0] - sx, self.truth[1] - sy)
+            report.append(f"simple goal ({sx}, {sy}): final error {err:.2f} m")
+            self.assertLessEqual(err, 0.45, report[-1])
         if max_contacts >= 0:
             self.assertLessEqual(self.contacts, max_contacts, "contacts: %d" % self.contacts)
         self.assertGreater(self.plans, 0, "nothing published on move_base/plan")

@@ -18,7 +18,6 @@ def fatal(message, code=2):
     sys.stderr.write(line + "\n")
     sys.stderr.flush()
     if rospy.core.is_initialized():
-        rospy.logfatal(line)
         rospy.signal_shutdown(line)
     os._exit(code)
 
