@@ -176,3 +176,23 @@ def test_gui_under_xvfb(master, tmp_path):
         os.killpg(proc.pid, signal.SIGINT)
         out, _ = proc.communicate(timeout=15)
     assert "FATAL" not in out
+
+
+def test_poses_list_wrong_length(master):
+    check_fails(run_node(master, map=GRID, poses="[1.425, 24.375]"), "~poses", "multiple of 3")
+
+
+def test_poses_as_list_accepted(master):
+    """~poses may also be a YAML list of numbers."""
+    _counter[0] += 1
+    args = [BINARY, f"__name:=stage2d_list{_counter[0]}", f"_map:={GRID}",
+            "_poses:=[1.425, 24.375, 1.5708, 1.425, 18.675, 0]"]
+    proc = subprocess.Popen(args, env=master, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, start_new_session=True)
+    try:
+        time.sleep(1.5)
+        assert proc.poll() is None, f"exited {proc.returncode}: {proc.stdout.read()}"
+    finally:
+        os.killpg(proc.pid, signal.SIGINT)
+        out, _ = proc.communicate(timeout=10)
+    assert "2 robots" in out, out
