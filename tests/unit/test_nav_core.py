@@ -291,3 +291,17 @@ def test_map_server_bad_yaml_one_line_error(tmp_path):
         assert len(lines) == 1 and lines[0].startswith("map_server: error:"), proc.stderr
         if args:
             assert os.path.basename(args[0]) in lines[0]
+
+
+def test_controller_brakes_harder_for_unmapped_points():
+    """The same point ahead: as a static map obstacle the robot may keep more speed than as
+    an unexplained (possibly moving) one, which also stops it earlier."""
+    p = ControllerParams()
+    path = straight_path()
+    pts = np.array([[1.6, 0.0]])
+    static = compute_command((0.0, 0.0, 0.0), 0.8, 0.0, path, 0, pts, 0.1, p)
+    dynamic = compute_command((0.0, 0.0, 0.0), 0.8, 0.0, path, 0, pts, 0.1, p, pts)
+    assert dynamic.v < static.v
+    close = np.array([[0.6, 0.0]])
+    assert not compute_command((0.0, 0.0, 0.0), 0.8, 0.0, path, 0, close, 0.1, p).blocked
+    assert compute_command((0.0, 0.0, 0.0), 0.8, 0.0, path, 0, close, 0.1, p, close).blocked

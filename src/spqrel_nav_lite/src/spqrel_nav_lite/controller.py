@@ -67,7 +67,8 @@ def front_clearance(points_robot, v, w, radius, horizon, step=0.1):
     return max(0.0, abs(s[hit[0]]) - step)
 
 
-def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p):
+def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
+                    dynamic_points=None):
     """One control step.
 
     Args:
@@ -78,6 +79,9 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p):
         points_robot: laser points in the robot frame (N, 2), all obstacles seen now.
         dt: control period (s).
         p: ControllerParams.
+        dynamic_points: the subset the map does not explain (robot frame), possibly moving
+            (e.g. another robot driving towards this one): braking for them assumes they may
+            close half of the gap, and the stop distance grows with the speed (latency).
     """
     path = np.asarray(path, dtype=float)
     x, y, th = pose
@@ -128,6 +132,15 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p):
         if free <= 0.1:
             blocked = True
             v_t = 0.0
+    if dynamic_points is not None and len(dynamic_points) and not blocked:
+        dyn = front_clearance(np.asarray(dynamic_points, dtype=float).reshape(-1, 2),
+                              max(v_t, 0.05), max(v_t, 0.05) * curvature, r_safe, horizon)
+        stop_at = 0.1 + 0.3 * max(0.0, v_now)
+        if dyn < horizon:
+            v_t = min(v_t, 0.5 * math.sqrt(2.0 * p.acc_lim_x * max(0.0, dyn - stop_at)))
+            if dyn <= stop_at:
+                blocked = True
+                v_t = 0.0
     v_t = max(0.0, v_t)
     if blocked:
         v_cmd = 0.0     # emergency stop ignores the deceleration limit
