@@ -112,6 +112,10 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
         w_t = math.copysign(max(p.min_in_place_rotational_vel,
                                 min(p.max_rot_vel, 1.5 * abs(alpha))), alpha)
         v_cmd = _limit(0.0, v_now, 4.0 * p.acc_lim_x, dt)
+        if v_cmd > 0.0:     # still rolling forward: stop at once if anything is close ahead
+            stop = 0.1 + 0.3 * v_now
+            if front_clearance(pts, v_now, w_now, r_safe, max(0.5, 2 * stop)) <= stop:
+                v_cmd = 0.0
         w_cmd = _limit(w_t, w_now, p.acc_lim_th, dt)
         return Command(v_cmd, w_cmd, index=idx)
     curvature = 2.0 * math.sin(alpha) / ld
