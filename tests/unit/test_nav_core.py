@@ -110,6 +110,39 @@ def test_planner_temporary_obstacle_blocks_and_clears():
     assert len(p.plan((1.0, 1.0), (9.0, 1.0))) == len(base)
 
 
+def test_planner_caches_obstacle_free_navigation_functions():
+    m = room(w=10, h=2.0)
+    p = GlobalPlanner(m)
+    a = p.plan((1.0, 1.0), (9.0, 1.0))
+    p.plan((1.0, 1.0), (5.0, 1.0))
+    assert p.searches == 2
+    b = p.plan((1.5, 1.0), (9.0, 1.0))           # goal seen before: no new search
+    assert p.searches == 2 and np.allclose(a[-1], b[-1])
+    # temporary obstacles: never served from the cache, and the path goes around them
+    blob = np.array([[5.0, 1.0]])
+    p.set_obstacles(blob)
+    c = p.plan((1.0, 1.0), (9.0, 1.0))
+    assert p.searches == 3 and path_blocked(c, blob, 0.225) is None
+    p.clear_obstacles()
+    p.plan((1.0, 1.0), (9.0, 1.0))
+    assert p.searches == 3                        # back on the cached obstacle-free field
+    # an obstacle away from the obstacle-free optimum changes nothing: no search, same path
+    p.set_obstacles(np.array([[5.0, 8.0 / 5.0 + 0.3]]))
+    assert p._obstacles.any()
+    d = p.plan((1.0, 1.0), (9.0, 1.0))
+    assert p.searches == 3 and np.allclose(d, a)
+    # the cache is bounded in bytes: 0 disables it
+    q = GlobalPlanner(m, cache_bytes=0)
+    q.plan((1.0, 1.0), (9.0, 1.0))
+    q.plan((1.0, 1.0), (5.0, 1.0))
+    q.plan((1.0, 1.0), (9.0, 1.0))
+    assert q.searches == 3
+    one = GlobalPlanner(m, cache_bytes=q.w * q.h * 8)   # room for exactly one field
+    for goal in ((9.0, 1.0), (5.0, 1.0), (9.0, 1.0)):
+        one.plan((1.0, 1.0), goal)
+    assert one.searches == 3 and len(one._cache) == 1
+
+
 def test_planner_on_shipped_map_all_vertices_reachable():
     from patrolling_sim.graph import PatrolGraph
     m = load_map(os.path.join(ROOT, "maps", "cumberland", "cumberland.yaml"))
@@ -273,6 +306,35 @@ def test_scan_points_and_memory_expiry():
     # a later beam through the cell to a farther hit clears it
     assert mem.clear_seen_through((0.0, 0.0), np.array([[6.0, 6.0]]), now=2.6)
     assert len(mem) == 0
+
+
+def test_memory_clear_seen_through_matches_brute_force():
+    """The bearing search finds, for every cell, the same nearest beam as comparing every
+    cell with every beam (wrap-around at +-pi included)."""
+    def brute(cells, hits, now, margin=0.3, cell=0.1):
+        out = set()
+        for (i, j), seen in cells.items():
+            cx, cy = (i + 0.5) * cell, (j + 0.5) * cell
+            ac, dc = math.atan2(cy, cx), math.hypot(cx, cy)
+            best = min(range(len(hits)), key=lambda k: abs(
+                (ac - math.atan2(hits[k][1], hits[k][0]) + math.pi) % (2 * math.pi) - math.pi))
+            d = abs((ac - math.atan2(hits[best][1], hits[best][0]) + math.pi) % (2 * math.pi)
+                    - math.pi)
+            if d < math.radians(2.0) and dc < math.hypot(*hits[best]) - margin and now > seen:
+                out.add((i, j))
+        return out
+
+    rng = np.random.default_rng(7)
+    for _ in range(60):
+        mem = ObstacleMemory(cell=0.1)
+        mem.add(rng.uniform(-4, 4, size=(int(rng.integers(1, 80)), 2)), now=0.0)
+        ang = rng.uniform(-math.pi, math.pi, int(rng.integers(1, 120)))
+        ang[:2] = (math.pi - 1e-3, -math.pi + 1e-3)           # beams either side of the cut
+        r = rng.uniform(0.2, 6.0, len(ang))
+        hits = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
+        before = dict(mem._cells)
+        mem.clear_seen_through((0.0, 0.0), hits, now=1.0)
+        assert set(before) - set(mem._cells) == brute(before, hits, 1.0)
 
 
 # -- command line -----------------------------------------------------------------------------

@@ -141,6 +141,9 @@ struct Robot {
   double start_x = 0, start_y = 0, start_yaw = 0;
   // command state
   double cmd_v = 0, cmd_w = 0, last_cmd = -1e9;  // last_cmd in sim seconds
+  // steps driven by a live command, and those whose newest command arrived before the
+  // previous step was published (the controller missed a step: pace too fast for it)
+  long driven_steps = 0, stale_steps = 0;
   double v = 0, w = 0;                           // current (acceleration-limited) command
   // measured motion of the last step (robot frame)
   double meas_vx = 0, meas_vy = 0, meas_w = 0;
@@ -211,6 +214,7 @@ class Stage2D {
   std::string check_pose(double x, double y, const std::string& what) const;
   void place(Robot& r, double x, double y, double yaw);
   void step_once();
+  double stale_command_fraction() const;
   void publish_state();
   void compute_scans(const std::vector<int>& which);
   void scan_robot(Robot& r);
@@ -231,7 +235,7 @@ class Stage2D {
   bool have_graph_ = false;
 
   // parameters
-  double radius_ = 0.225, step_ = 0.05, speedup_ = 1.0, cmd_timeout_ = 0.5;
+  double radius_ = 0.225, step_ = 0.1, speedup_ = 1.0, cmd_timeout_ = 0.5;
   double max_v_ = 1.0, max_w_ = 1.0, acc_v_ = 2.5, acc_w_ = 3.2;
   double laser_fov_ = 270.0 * M_PI / 180, laser_range_max_ = 20, laser_range_min_ = 0;
   double laser_rate_ = 10, laser_x_ = 0.15, laser_noise_ = 0;
@@ -308,7 +312,7 @@ void Stage2D::setup() {
   map_.load(map_path);
 
   radius_ = positive("robot_radius", 0.225);
-  step_ = positive("step", 0.05);
+  step_ = positive("step", 0.1);  // Stage's default interval_sim (100 ms)
   speedup_ = param<double>("speedup", 1.0);
   if (!std::isfinite(speedup_)) throw InputError("parameter ~speedup must be a number");
   cmd_timeout_ = positive("cmd_vel_timeout", 0.5);
@@ -660,6 +664,10 @@ void Stage2D::step_once() {
   // commands: watchdog, velocity and acceleration limits, differential drive
   for (Robot& r : robots_) {
     bool alive = sim_time_ - r.last_cmd <= cmd_timeout_;
+    if (alive && (r.cmd_v != 0 || r.cmd_w != 0)) {
+      ++r.driven_steps;
+      if (r.last_cmd < sim_time_ - 1e-9) ++r.stale_steps;
+    }
     double tv = alive ? std::max(-max_v_, std::min(max_v_, r.cmd_v)) : 0.0;
     double tw = alive ? std::max(-max_w_, std::min(max_w_, r.cmd_w)) : 0.0;
     double dv = acc_v_ * step_, dw = acc_w_ * step_;
@@ -839,6 +847,15 @@ cv::Mat Stage2D::render() {
   return img;
 }
 
+double Stage2D::stale_command_fraction() const {
+  long driven = 0, stale = 0;
+  for (const Robot& r : robots_) {
+    driven += r.driven_steps;
+    stale += r.stale_steps;
+  }
+  return driven ? static_cast<double>(stale) / driven : 0.0;
+}
+
 void Stage2D::publish_status(double rtf) {
   std::ostringstream js;
   long wall = 0, rob = 0;
@@ -853,7 +870,8 @@ void Stage2D::publish_status(double rtf) {
     js << (i ? ", " : "") << "{\"wall\": " << r.wall_contacts << ", \"robot\": " << r.robot_contacts
        << ", \"touching\": " << (r.touching > 0 ? "true" : "false") << "}";
   }
-  js << "], \"wall_contacts\": " << contacts_->wall << ", \"robot_contacts\": " << contacts_->robot << "}";
+  js << "], \"wall_contacts\": " << contacts_->wall << ", \"robot_contacts\": " << contacts_->robot
+     << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction()) << "}";
   std_msgs::String m;
   m.data = js.str();
   status_pub_.publish(m);
@@ -899,8 +917,10 @@ void Stage2D::run() {
     }
     double since_log = std::chrono::duration<double>(now - log_wall).count();
     if (since_log >= log_period_) {
-      ROS_INFO("stage2d: sim time %.1f s, real-time factor %.2f (speedup %g), %zu robots, contacts wall %ld robot %ld",
-               sim_time_, (sim_time_ - log_sim) / since_log, speedup_, robots_.size(), contacts_->wall, contacts_->robot);
+      ROS_INFO("stage2d: sim time %.1f s, real-time factor %.2f (speedup %g), %zu robots, contacts wall %ld robot %ld, "
+               "stale commands %.1f%%",
+               sim_time_, (sim_time_ - log_sim) / since_log, speedup_, robots_.size(), contacts_->wall, contacts_->robot,
+               100.0 * stale_command_fraction());
       log_sim = sim_time_;
       log_wall = now;
     }

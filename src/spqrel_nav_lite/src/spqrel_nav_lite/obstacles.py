@@ -65,10 +65,19 @@ class ObstacleMemory:
         h = np.asarray(hits_world, dtype=float)
         dh = np.hypot(h[:, 0] - sx, h[:, 1] - sy)
         ah = np.arctan2(h[:, 1] - sy, h[:, 0] - sx)
-        diff = np.abs((ac[:, None] - ah[None, :] + np.pi) % (2 * np.pi) - np.pi)
-        k = np.argmin(diff, axis=1)
-        crossed = (diff[np.arange(len(keys)), k] < math.radians(2.0)) & \
-            (dc < dh[k] - margin) & (now - np.array([self._cells[q] for q in keys]) > 0.0)
+        # nearest beam by bearing: binary search in the sorted bearings, the neighbours on
+        # both sides (with wrap-around at +-pi) -- O((cells + hits) log hits)
+        order = np.argsort(ah)
+        ah, dh = ah[order], dh[order]
+        m = len(ah)
+        k = np.searchsorted(ah, ac)
+        k0, k1 = (k - 1) % m, k % m
+        d0 = np.abs((ac - ah[k0] + np.pi) % (2 * np.pi) - np.pi)
+        d1 = np.abs((ac - ah[k1] + np.pi) % (2 * np.pi) - np.pi)
+        near = np.where(d1 < d0, k1, k0)
+        diff = np.minimum(d0, d1)
+        seen = np.fromiter((self._cells[q] for q in keys), dtype=float, count=len(keys))
+        crossed = (diff < math.radians(2.0)) & (dc < dh[near] - margin) & (now - seen > 0.0)
         for q, cr in zip(keys, crossed):
             if cr:
                 del self._cells[q]

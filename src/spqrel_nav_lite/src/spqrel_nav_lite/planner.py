@@ -7,8 +7,13 @@ inflation layer) keeps paths away from walls. One Dijkstra run from the goal giv
 function for the whole map, so re-planning from a new robot position is a cheap walk along the
 predecessor tree until the obstacle set changes. Temporary obstacles (points in metres) forbid
 the cells within ``robot_radius + obstacle_margin`` of them.
+
+Patrol goals repeat (the same graph vertices over and over), so navigation functions computed
+without temporary obstacles are kept in a least-recently-used cache bounded in bytes
+(``cache_bytes``): a goal seen before costs no search at all while nothing is in the way.
 """
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -21,7 +26,7 @@ class PlanningError(Exception):
 
 class GlobalPlanner:
     def __init__(self, omap, robot_radius=0.225, inflation_radius=0.66, resolution=0.1,
-                 cost_scaling=3.0, cost_weight=4.0, obstacle_margin=0.1):
+                 cost_scaling=3.0, cost_weight=4.0, obstacle_margin=0.1, cache_bytes=32 << 20):
         if resolution <= 0:
             raise ValueError(f"planner resolution must be positive, got {resolution}")
         self.map = omap
@@ -44,7 +49,10 @@ class GlobalPlanner:
                              1.0 + cost_weight * np.exp(-cost_scaling * np.maximum(d, 0.0)), 1.0)
         self._build_edges()
         self._obstacles = np.zeros((self.h, self.w), dtype=bool)
-        self._field = None      # (goal_index, dist, pred)
+        self._field = None      # (goal_index, dist, pred, computed without obstacles)
+        self._cache = OrderedDict()     # goal_index -> (dist, pred) without obstacles
+        self._cache_cap = max(0, int(cache_bytes)) // max(1, self.h * self.w * 8)
+        self.searches = 0               # Dijkstra runs so far (statistics)
 
     # -- grid helpers -------------------------------------------------------------------
     def cell(self, x, y):
@@ -82,19 +90,32 @@ class GlobalPlanner:
         self._src = np.concatenate(src).astype(np.int32)
         self._dst = np.concatenate(dst).astype(np.int32)
         self._wt = np.concatenate(wt)
+        self._free_graph = None
         self._graph = None
 
     def _csgraph(self):
+        """The cell graph for Dijkstra with the current temporary obstacles. The obstacle-free
+        graph is built once, with both directions stored (``dijkstra(directed=False)`` would
+        rebuild the symmetric graph on every call, 10x the cost of the search itself);
+        obstacles only set the weights of the edges touching their cells to infinity."""
         from scipy.sparse import csr_matrix
-        if self._graph is None:
+        if self._free_graph is None:
             n = self.h * self.w
+            s, d, wt = self._src, self._dst, self._wt
+            self._free_graph = csr_matrix((np.concatenate([wt, wt]),
+                                           (np.concatenate([s, d]), np.concatenate([d, s]))),
+                                          shape=(n, n))
+            self._free_graph.sort_indices()
+            self._rows = np.repeat(np.arange(n, dtype=np.int32),
+                                   np.diff(self._free_graph.indptr))
+        if self._graph is None:
             if self._obstacles.any():
                 flat = self._obstacles.ravel()
-                m = ~(flat[self._src] | flat[self._dst])
-                s, d, wt = self._src[m], self._dst[m], self._wt[m]
+                g = self._free_graph.copy()
+                g.data[flat[self._rows] | flat[g.indices]] = np.inf
+                self._graph = g
             else:
-                s, d, wt = self._src, self._dst, self._wt
-            self._graph = csr_matrix((wt, (s, d)), shape=(n, n))
+                self._graph = self._free_graph
         return self._graph
 
     # -- temporary obstacles ---------------------------------------------------------------
@@ -179,25 +200,58 @@ class GlobalPlanner:
                                     f"obstacle with no free cell within {start_search} m")
             si, sj = c
         g = gj * self.w + gi
-        if self._field is None or self._field[0] != g:
-            from scipy.sparse.csgraph import dijkstra
-            dist, pred = dijkstra(self._csgraph(), directed=False, indices=g,
-                                  return_predecessors=True)
-            self._field = (g, dist, pred)
-        _, dist, pred = self._field
         s = sj * self.w + si
-        if not np.isfinite(dist[s]):
+        if self._field is None or self._field[0] != g:
+            self._field = (g,) + self._navigation_function(g, free=True)
+        cells = self._walk(s, g)
+        if cells is not None and self._obstacles.any() and self._field[3] and \
+                self._obstacles.ravel()[cells].any():
+            # the obstacle-free optimum crosses a temporary obstacle: search around it
+            # (otherwise that path is optimal with the obstacles too: they only remove cells)
+            self._field = (g,) + self._navigation_function(g, free=False)
+            cells = self._walk(s, g)
+        if cells is None:
             raise PlanningError(f"no path from ({start[0]:.2f}, {start[1]:.2f}) to goal "
                                 f"({goal[0]:.2f}, {goal[1]:.2f})")
-        cells = [s]
-        while cells[-1] != g:
-            cells.append(int(pred[cells[-1]]))
-        cells = np.array(cells)
         xs = self.origin[0] + (cells % self.w + 0.5) * self.res
         ys = self.origin[1] + (cells // self.w + 0.5) * self.res
         path = np.column_stack([xs, ys])
         path[-1] = goal if self.map.is_free(*goal) and not blocked[gj, gi] else path[-1]
         return path
+
+    def _walk(self, s, g):
+        """Cell indices from ``s`` to ``g`` along the current field, or None if unreachable."""
+        _, dist, pred, _ = self._field
+        if not np.isfinite(dist[s]):
+            return None
+        cells = [s]
+        while cells[-1] != g:
+            cells.append(int(pred[cells[-1]]))
+        return np.array(cells)
+
+    def _navigation_function(self, g, free):
+        """(dist, pred, free) of a Dijkstra run from cell index ``g``, without temporary
+        obstacles if ``free`` (or if there are none). Obstacle-free fields come from the
+        cache when this goal was searched before."""
+        free = free or not self._obstacles.any()
+        if free and g in self._cache:
+            self._cache.move_to_end(g)
+            return self._cache[g] + (True,)
+        from scipy.sparse.csgraph import dijkstra
+        graph = self._csgraph() if not free else (self._csgraph_free())
+        dist, pred = dijkstra(graph, directed=True, indices=g, return_predecessors=True)
+        self.searches += 1
+        field = (dist.astype(np.float32), pred.astype(np.int32))
+        if free and self._cache_cap > 0:
+            self._cache[g] = field
+            while len(self._cache) > self._cache_cap:
+                self._cache.popitem(last=False)
+        return field + (free,)
+
+    def _csgraph_free(self):
+        if self._free_graph is None:
+            self._csgraph()
+        return self._free_graph
 
     def path_cost(self, start):
         """Navigation-function value (weighted metres) at a position, inf if unreachable or no

@@ -22,9 +22,20 @@ def fatal(message, code=2):
     os._exit(code)
 
 
-def param(name, default, kind=float, check=None, what=None):
-    """Read a private parameter, validate its type and range (bad -> fatal one-liner)."""
-    v = rospy.get_param("~" + name, default)
+def param_name(name, ns="~"):
+    """How a parameter is shown in errors: ``~name`` for a node's own, ``ns/name`` otherwise."""
+    return ("~" + name) if ns == "~" else ns + name
+
+
+def param(name, default, kind=float, check=None, what=None, ns="~"):
+    """Read a parameter, validate its type and range (bad -> fatal one-liner).
+
+    ``ns`` is where it lives: ``"~"`` (the node's private namespace, the default) or a
+    relative namespace such as ``"move_base/"`` when several components share one process
+    (robot_nav) but keep the parameter names of their standalone nodes."""
+    full = ns + name
+    v = rospy.get_param(full, default)
+    shown = param_name(name, ns)
     try:
         if kind is bool:
             if isinstance(v, str) and v.lower() in ("true", "false"):
@@ -36,16 +47,16 @@ def param(name, default, kind=float, check=None, what=None):
             if isinstance(v, bool):
                 raise ValueError
             v = kind(v)
-            if kind is int and float(rospy.get_param("~" + name, default)) != v:
+            if kind is int and float(rospy.get_param(full, default)) != v:
                 raise ValueError
             if not np.isfinite(v):
                 raise ValueError
         else:
             v = kind(v)
     except (TypeError, ValueError):
-        fatal(f"parameter ~{name}: expected {kind.__name__}, got {v!r}")
+        fatal(f"parameter {shown}: expected {kind.__name__}, got {v!r}")
     if check is not None and not check(v):
-        fatal(f"parameter ~{name}: {v!r} is invalid ({what or 'out of range'})")
+        fatal(f"parameter {shown}: {v!r} is invalid ({what or 'out of range'})")
     return v
 
 
@@ -111,20 +122,21 @@ def map_to_grid(omap, frame_id="map", stamp=None):
     return msg
 
 
-def get_map():
+def get_map(ns="~"):
     """The map for a per-robot node: from the yaml in ``~map_yaml`` if set, else the first
-    message on ``~map_topic`` (default ``/map``), else the ``static_map`` service."""
-    yaml_path = rospy.get_param("~map_yaml", "")
+    message on ``~map_topic`` (default ``/map``), else the ``static_map`` service (``ns``: the
+    parameters' namespace, see :func:`param`)."""
+    yaml_path = rospy.get_param(ns + "map_yaml", "")
     if yaml_path:
         try:
             return load_map(yaml_path)
         except PatrolInputError as e:
-            fatal(f"parameter ~map_yaml: {e}")
+            fatal(f"parameter {param_name('map_yaml', ns)}: {e}")
     from nav_msgs.msg import OccupancyGrid
     from nav_msgs.srv import GetMap
-    topic = rospy.get_param("~map_topic", "/map")
-    service = rospy.get_param("~map_service", "/static_map")
-    wait = float(rospy.get_param("~map_wait", 60.0))
+    topic = rospy.get_param(ns + "map_topic", "/map")
+    service = rospy.get_param(ns + "map_service", "/static_map")
+    wait = float(rospy.get_param(ns + "map_wait", 60.0))
     deadline = rospy.get_time() + wait
     while not rospy.is_shutdown():
         try:
@@ -137,6 +149,6 @@ def get_map():
         except (rospy.ROSException, rospy.ServiceException):
             pass
         if rospy.get_time() > deadline:
-            fatal(f"no map on {topic} or {service} after {wait:.0f} s (set ~map_yaml or start "
-                  f"map_server)")
+            fatal(f"no map on {topic} or {service} after {wait:.0f} s (set "
+                  f"{param_name('map_yaml', ns)} or start map_server)")
     sys.exit(0)

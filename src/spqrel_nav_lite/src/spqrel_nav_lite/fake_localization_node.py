@@ -1,0 +1,89 @@
+"""fake_localization (per robot): map -> odom tf and amcl_pose from the ground-truth pose.
+
+Subscribes base_pose_ground_truth and odom (nav_msgs/Odometry); the correction is
+map->odom = ground_truth o odom(at the same stamp)^-1, so odometry drift is removed.
+"""
+import functools
+import threading
+
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry
+
+from spqrel_nav_lite.geometry import PoseHistory, compose, inverse
+from spqrel_nav_lite.ros_util import (fill_pose, namespace_prefix, param, pose_of,
+                                      strip_slash, transform_msg)
+
+
+class FakeLocalization:
+    """``ns``: parameter namespace (``"~"`` as a standalone node, ``"fake_localization/"``
+    inside robot_nav). ``pose_listeners``: callables ``f(pose, stamp_sec)`` that receive
+    every published pose in-process (robot_nav hands it to move_base this way)."""
+
+    def __init__(self, ns="~", pose_listeners=()):
+        self._p = functools.partial(param, ns=ns)
+        self.pose_listeners = list(pose_listeners)
+        ns = namespace_prefix()
+        self.global_frame = strip_slash(self._p("global_frame_id", "map", str))
+        self.odom_frame = strip_slash(self._p("odom_frame_id", ns + "odom", str))
+        self.base_frame = strip_slash(self._p("base_frame_id", ns + "base_link", str))
+        self.delta = (self._p("delta_x", 0.0), self._p("delta_y", 0.0), self._p("delta_yaw", 0.0))
+        self.odom = PoseHistory(horizon=5.0)
+        self.pending = None
+        self.lock = threading.Lock()
+        self.tf = tf2_ros.TransformBroadcaster()
+        self.pose_pub = rospy.Publisher("amcl_pose", PoseWithCovarianceStamped, queue_size=1)
+        rospy.Subscriber("odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
+        rospy.Subscriber("base_pose_ground_truth", Odometry, self.on_truth, queue_size=1,
+                         tcp_nodelay=True)
+
+    def on_odom(self, msg):
+        with self.lock:
+            self._on_odom(msg)
+
+    def on_truth(self, msg):
+        with self.lock:
+            self._on_truth(msg)
+
+    def _on_odom(self, msg):
+        self.odom.add(msg.header.stamp.to_sec(), pose_of(msg.pose.pose))
+        pending = self.pending
+        if pending is not None and pending.header.stamp <= msg.header.stamp:
+            self.pending = None
+            self.publish(pending)
+
+    def _on_truth(self, msg):
+        latest = self.odom.latest()
+        if latest is None or latest[0] < msg.header.stamp.to_sec():
+            # odometry for this instant not here yet: publish when it arrives (or on the
+            # next ground-truth message, whichever comes first)
+            older, self.pending = self.pending, msg
+            if older is not None and latest is not None:
+                self.publish(older)
+            return
+        self.publish(msg)
+
+    def publish(self, msg):
+        stamp = msg.header.stamp
+        odom = self.odom.at(stamp.to_sec())
+        if odom is None:
+            return
+        truth = compose(pose_of(msg.pose.pose), self.delta) if any(self.delta) \
+            else pose_of(msg.pose.pose)
+        correction = compose(truth, inverse(odom))
+        self.tf.sendTransform(transform_msg(correction, stamp, self.global_frame,
+                                            self.odom_frame))
+        out = PoseWithCovarianceStamped()
+        out.header.stamp = stamp
+        out.header.frame_id = self.global_frame
+        fill_pose(out.pose.pose, truth)
+        self.pose_pub.publish(out)
+        for f in self.pose_listeners:
+            f(truth, stamp.to_sec())
+
+
+def main():
+    rospy.init_node("fake_localization")
+    FakeLocalization()
+    rospy.spin()
