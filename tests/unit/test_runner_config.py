@@ -105,9 +105,14 @@ def test_generated_launch(tmp_path):
     pos = cfg.start_positions()
     xml = generate_launch(cfg, pos, str(tmp_path / "20260101_000000"))
     root = ET.fromstring(xml)
-    agents = [n for n in root.iter("node") if n.get("type") == "patrol_agent"]
-    assert [a.get("name") for a in agents] == [f"patrol_robot{i}" for i in range(4)]
-    assert len([i for i in root.iter("include") if i.get("file").endswith("robot.launch")]) == 4
+    # default: every agent in one patrol_agents process, robot_nav per robot
+    hosts = [n for n in root.iter("node") if n.get("type") == "patrol_agents"]
+    assert len(hosts) == 1 and hosts[0].get("args") == "grid 0-3"
+    assert not [n for n in root.iter("node") if n.get("type") == "patrol_agent"]
+    robots = [i for i in root.iter("include") if i.get("file").endswith("robot.launch")]
+    assert len(robots) == 4
+    assert all({a.get("name"): a.get("value") for a in r.iter("arg")}["combined"] == "true"
+               for r in robots)
     mon = [n for n in root.iter("node") if n.get("type") == "monitor"][0]
     assert mon.get("required") == "true" and mon.get("args") == "grid CGG 4"
     params = {p.get("name"): p.get("value") for p in root.findall("param")}
@@ -115,6 +120,16 @@ def test_generated_launch(tmp_path):
     init = root.find("rosparam").text
     assert init.startswith("[") and len(init.strip("[]").split(",")) == 8
     assert any(n.get("type") == "rviz" for n in root.iter("node"))
+    # the original's layout: one patrol_agent node per robot, separate navigation nodes
+    sep = ET.fromstring(generate_launch(base(results_dir=str(tmp_path), processes="separate")
+                                        .validate(), pos, str(tmp_path / "20260101_000001")))
+    agents = [n for n in sep.iter("node") if n.get("type") == "patrol_agent"]
+    assert [a.get("name") for a in agents] == [f"patrol_robot{i}" for i in range(4)]
+    assert [a.find("param[@name='seed']").get("value") for a in agents] == ["0", "1", "2", "3"]
+    assert all({a.get("name"): a.get("value") for a in r.iter("arg")}["combined"] == "false"
+               for r in sep.iter("include") if r.get("file").endswith("robot.launch"))
+    with pytest.raises(PatrolInputError, match="argument --processes: must be one of"):
+        base(processes="threads").validate()
 
 
 def test_process_tree_stops_only_own_descendants():
@@ -173,3 +188,12 @@ def test_cli_dry_run_writes_launch_and_config(tmp_path):
     cfg = load_config_file(launch.replace("_experiment.launch", "_config.yaml"))
     assert (cfg.map, cfg.robots, cfg.alg, cfg.timeout) == ("grid", 3, "CR", 60.0)
     assert os.path.dirname(launch).endswith(os.path.join("grid_3", "CR", os.uname().nodename))
+
+
+def test_patrol_agents_robot_ids():
+    from patrolling_sim.ros.agent import AgentError, parse_ids
+    assert parse_ids(["0-3"]) == [0, 1, 2, 3]
+    assert parse_ids(["5", "0-1", "1"]) == [0, 1, 5]
+    for bad in (["x"], ["3-1"], ["-2"]):
+        with pytest.raises(AgentError):
+            parse_ids(bad)

@@ -72,7 +72,11 @@ class TestNodeCli(unittest.TestCase):
     def test_fail_dead_robot(self):
         info, dt, _ = self._monitor_run("fail", ["_dead_robot_timeout:=2.0"], lambda: None)
         self.assertEqual(info[13], "FAIL")
-        self.assertGreaterEqual(dt, 2.0)
+        # the monitor's own clock is authoritative; the checker may only have caught a
+        # repeated GO (sent 3 times 0.5 s apart and on late announcements), so its wall
+        # interval GO -> END can be up to ~1 s shorter
+        self.assertGreaterEqual(float(info[10]), 2.0)
+        self.assertGreaterEqual(dt, 1.0)
 
     def test_abort(self):
         info, _, _ = self._monitor_run(
@@ -83,9 +87,9 @@ class TestNodeCli(unittest.TestCase):
     def test_timeout(self):
         info, dt, _ = self._monitor_run("timeout", ["_timeout:=2.5"], lambda: None)
         self.assertEqual(info[13], "TIMEOUT")
-        self.assertGreaterEqual(dt, 2.5)
+        self.assertGreaterEqual(float(info[10]), 2.5)   # monitor's clock: see above
+        self.assertGreaterEqual(dt, 1.5)
         self.assertLess(dt, 15.0)
-        self.assertGreaterEqual(float(info[10]), 2.5)
 
     def test_stopped(self):
         info, _, _ = self._monitor_run(

@@ -63,6 +63,14 @@ class TestPatrolRun(unittest.TestCase):
         for i in range(self.n):
             self.assertGreater(self.positions.get(f"robot_{i}/map", 0), 0, self.positions)
 
+    def test_algorithm_messages_from_every_robot(self):
+        """Algorithms that talk (e.g. SEBS type 32) reach the others, also when the agents
+        share one process (~msg_type; 0 = not checked)."""
+        kind = rospy.get_param("~msg_type", 0)
+        if kind:
+            senders = {d[0] for t, d in self.rec.of_type(kind)}
+            self.assertEqual(senders, set(range(self.n)))
+
     def test_markers(self):
         self.assertTrue(self.markers, "no /patrol_graph_markers")
         m = self.markers[-1].markers
@@ -77,7 +85,7 @@ class TestPatrolRun(unittest.TestCase):
         info = U.check_info_line(self, U.read(prefix + "_info.csv"))
         self.assertEqual(info[0], "grid")
         self.assertEqual(int(info[1]), self.n)
-        self.assertEqual(info[6], "CR")
+        self.assertEqual(info[6], rospy.get_param("~alg", "CR"))
         self.assertEqual(info[13], "CYCLES")
         self.assertEqual(int(info[21]), self.cycles)
         self.assertEqual(os.path.basename(prefix), info[9])

@@ -289,10 +289,19 @@ class PatrolAgent:
         return False
 
     def run(self):
+        """Life cycle of a single-agent node: :meth:`start`, spin until END or shutdown."""
+        if self.start():
+            rospy.spin()
+        self.shutdown()
+        return 0
+
+    def start(self):
+        """Wait for ``robot_i/move_base``, then announce ``[i,10,1]`` every 2 s until GO
+        (callbacks do the rest). Returns False if the node shut down meanwhile."""
         if self.id == 0 or not rospy.has_param("/algorithm_params"):
             rospy.set_param("/algorithm_params", str(self.strategy.algorithm_params or ""))
         if not self.wait_for_server():
-            return 0
+            return False
         with self.lock:
             if self.phase == "init":
                 self.phase = "ready"
@@ -300,9 +309,7 @@ class PatrolAgent:
                       self.start_vertex)
         self._announce(None)
         self.announce_timer = rospy.Timer(rospy.Duration(ANNOUNCE_PERIOD), self._announce)
-        rospy.spin()
-        self.shutdown()
-        return 0
+        return True
 
     def _announce(self, _event):
         if self.phase == "ready":
@@ -523,6 +530,30 @@ class PatrolAgent:
         self.call_later(INTERFERENCE_PAUSE, resume)
 
 
+def _read_common_params():
+    """(algorithm, team_size, seed, params) from the node's private parameters."""
+    if not rospy.has_param("~algorithm"):
+        known = ", ".join(sorted(load_registry()))
+        raise AgentError(f"~algorithm is required (known: {known})")
+    alg = str(rospy.get_param("~algorithm"))
+    team_size = rospy.get_param("~team_size", None)
+    if team_size is not None:
+        try:
+            team_size = int(team_size)
+        except (TypeError, ValueError):
+            raise AgentError(f"~team_size: expected an integer, got {team_size!r}")
+    seed = rospy.get_param("~seed", None)
+    if seed is not None:
+        try:
+            seed = int(seed)
+        except (TypeError, ValueError):
+            raise AgentError(f"~seed: expected an integer, got {seed!r}")
+    params = rospy.get_param("~params", {})
+    if not isinstance(params, dict):
+        raise AgentError(f"~params: expected a dictionary, got {params!r}")
+    return alg, team_size, seed, params
+
+
 def main(argv=None):
     """Entry point of ``nodes/patrol_agent``: ``patrol_agent <map> <i>`` + private params."""
     import sys
@@ -546,27 +577,61 @@ def main(argv=None):
         map_arg = rospy.get_param("~map", args[0] if len(args) >= 2 else None)
         if not map_arg:
             raise AgentError("map: give it as first argument or as ~map")
-        if not rospy.has_param("~algorithm"):
-            known = ", ".join(sorted(load_registry()))
-            raise AgentError(f"~algorithm is required (known: {known})")
-        alg = str(rospy.get_param("~algorithm"))
-        team_size = rospy.get_param("~team_size", None)
-        if team_size is not None:
-            try:
-                team_size = int(team_size)
-            except (TypeError, ValueError):
-                raise AgentError(f"~team_size: expected an integer, got {team_size!r}")
-        seed = rospy.get_param("~seed", None)
-        if seed is not None:
-            try:
-                seed = int(seed)
-            except (TypeError, ValueError):
-                raise AgentError(f"~seed: expected an integer, got {seed!r}")
-        params = rospy.get_param("~params", {})
-        if not isinstance(params, dict):
-            raise AgentError(f"~params: expected a dictionary, got {params!r}")
+        alg, team_size, seed, params = _read_common_params()
         agent = PatrolAgent(map_arg, robot_id, alg, team_size, seed, params)
     except AgentError as e:
         sys.stderr.write(f"{prog}: error: {e}\n")
         return e.code
     return agent.run()
+
+
+def parse_ids(tokens):
+    """Robot ids from ``['0', '2', '5-7']`` -> [0, 2, 5, 6, 7] (sorted, no duplicates)."""
+    ids = set()
+    for tok in tokens:
+        m = re.fullmatch(r"(\d+)(?:-(\d+))?", tok)
+        if not m:
+            raise AgentError(f"robot id: expected an integer or a range a-b, got '{tok}'")
+        a = int(m.group(1))
+        b = int(m.group(2)) if m.group(2) is not None else a
+        if b < a:
+            raise AgentError(f"robot id range '{tok}' is empty")
+        ids.update(range(a, b + 1))
+    return sorted(ids)
+
+
+def main_multi(argv=None):
+    """Entry point of ``nodes/patrol_agents``: several agents in one process.
+
+    ``patrol_agents <map> <id|a-b> [...]`` with the private parameters of ``patrol_agent``;
+    agent ``i`` gets seed ``~seed + i`` (``~seed`` default 0). Each agent is the same
+    :class:`PatrolAgent` as in its own node, with the same topics and messages; sharing the
+    process means each ``/positions`` and ``/results`` message is received once for all of
+    them instead of once per agent (the N x N fan-out is what costs most with many robots).
+    The node ends when the monitor's END arrives or on shutdown."""
+    import sys
+    argv = rospy.myargv(sys.argv if argv is None else argv)
+    args = argv[1:]
+    rospy.init_node("patrol_agents", disable_signals=False)
+    prog = "patrol_agents"
+    try:
+        if len(args) < 2:
+            raise AgentError("usage: patrol_agents <map> <id|a-b> [...] (with ~algorithm set)")
+        ids = parse_ids(args[1:])
+        map_arg = rospy.get_param("~map", args[0])
+        alg, team_size, seed, params = _read_common_params()
+        base = 0 if seed is None else seed
+        agents = [PatrolAgent(map_arg, i, alg, team_size, base + i, params) for i in ids]
+    except AgentError as e:
+        sys.stderr.write(f"{prog}: error: {e}\n")
+        return e.code
+    rospy.loginfo("patrol_agents: %d agents (%s) running %s", len(agents),
+                  ", ".join(map(str, ids)), alg)
+    threads = [threading.Thread(target=a.start, name=f"start_robot_{a.id}", daemon=True)
+               for a in agents]
+    for t in threads:
+        t.start()
+    rospy.spin()
+    for a in agents:
+        a.shutdown()
+    return 0

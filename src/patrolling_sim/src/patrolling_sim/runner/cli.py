@@ -27,7 +27,7 @@ from .batch import load_batch
 from .config import ExperimentConfig, from_positional, load_config_file
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
-             "timeout", "cycles", "speedup", "seed", "results_dir", "record_period")
+             "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes")
 BOOL_KEYS = ("rviz", "gui_sim", "record")
 
 
@@ -51,6 +51,8 @@ def build_parser():
     ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
     ap.add_argument("--speedup", type=float, help="simulator pace (<= 0: as fast as possible)")
     ap.add_argument("--seed", type=int)
+    ap.add_argument("--processes", help="shared (default: agents in one process, each robot's "
+                    "localisation + navigation in one) | separate (one process per node)")
     ap.add_argument("--results-dir", dest="results_dir")
     ap.add_argument("--rviz", action="store_true", default=None, help="open rviz")
     ap.add_argument("--gui-sim", dest="gui_sim", action="store_true", default=None,

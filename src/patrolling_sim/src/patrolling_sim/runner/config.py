@@ -23,6 +23,12 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     gui_sim      open the simulator's window                         (false)
     record       save simulator snapshots and assemble a video       (false)
     record_period  sim seconds between snapshots                     (1.0)
+    processes    shared | separate                                   (shared)
+                 shared: all agents in one process (patrol_agents) and each robot's
+                 localisation + move_base in one process (robot_nav) -- same topics and
+                 messages, about half the CPU with many robots; separate: one process per
+                 node, as the original (patrol_agent per robot, amcl/fake_localization and
+                 move_base apart)
 
 ``validate()`` raises :class:`PatrolInputError` with one line naming the key or argument.
 """
@@ -38,6 +44,7 @@ from ..errors import PatrolInputError
 LOC_MODES = ("AMCL", "fake_localization")
 NAV_MODES = ("spqrel_nav_lite", "ros")
 NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lite"}
+PROCESS_MODES = ("shared", "separate")
 
 
 def default_results_dir():
@@ -64,6 +71,7 @@ class ExperimentConfig:
     gui_sim: bool = False
     record: bool = False
     record_period: float = 1.0
+    processes: str = "shared"
 
     # ------------------------------------------------------------------ conversion
     def to_dict(self):
@@ -122,6 +130,9 @@ class ExperimentConfig:
         if self.nav not in NAV_MODES:
             raise PatrolInputError(f"argument --nav: must be one of {', '.join(NAV_MODES)}, "
                                    f"got '{self.nav}'")
+        if self.processes not in PROCESS_MODES:
+            raise PatrolInputError(f"argument --processes: must be one of "
+                                   f"{', '.join(PROCESS_MODES)}, got '{self.processes}'")
         for name in ("gwait", "comm_delay", "timeout", "record_period"):
             if getattr(self, name) < 0:
                 raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be >= 0, "

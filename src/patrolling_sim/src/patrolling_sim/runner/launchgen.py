@@ -8,8 +8,10 @@ plain ``roslaunch``. The file composes:
   ``/lost_message_rate``, ``/navigation_module``, ``/initial_positions``, ``/initial_pos``),
 - the simulator (``patrol_stage2d/launch/stage2d.launch``),
 - one map server (``spqrel_nav_lite`` map_server publishing ``/map``),
-- per robot ``launch/robot.launch`` (localisation + navigation in namespace ``robot_i``),
-- the monitor and N PatrolAgent nodes (``patrolling_sim``),
+- per robot ``launch/robot.launch`` (localisation + navigation in namespace ``robot_i``; with
+  ``processes: shared`` both in one ``robot_nav`` process),
+- the monitor and the N agents (``processes: shared``: one ``patrol_agents`` process hosting
+  all of them; ``separate``: one ``patrol_agent`` node per robot, as the original),
 - optionally rviz with ``launch/patrol.rviz``.
 """
 import math
@@ -85,6 +87,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
         a(f'    <arg name="yaw" value="{yaw:.4f}"/>')
         a(f'    <arg name="localization" value={_attr(cfg.loc)}/>')
         a(f'    <arg name="navigation" value={_attr(cfg.nav)}/>')
+        a(f'    <arg name="combined" value="{str(cfg.processes == "shared").lower()}"/>')
         a("  </include>")
     a("")
     a("  <!-- monitor: ends the run (timeout / cycles / dead robot / abort); required, so")
@@ -97,14 +100,25 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'    <param name="timeout" value="{_num(cfg.timeout)}"/>')
     a(f'    <param name="cycles" value="{int(cfg.cycles)}"/>')
     a("  </node>")
-    for i in range(n):
-        a(f'  <node pkg="patrolling_sim" type="patrol_agent" name="patrol_robot{i}" '
-          f'output="log" args={_attr(f"{cfg.map_name} {i}")}>')
+    if cfg.processes == "shared":
+        # every agent in one process: the same PatrolAgent objects and topics, but each
+        # /positions and /results message is received once instead of N times
+        a('  <node pkg="patrolling_sim" type="patrol_agents" name="patrol_agents" '
+          f'output="log" args={_attr(f"{cfg.map_name} 0-{n - 1}")}>')
         a(f'    <param name="algorithm" value={_attr(cfg.alg)}/>')
         a(f'    <param name="map" value={_attr(cfg.map)}/>')
         a(f'    <param name="team_size" value="{n}"/>')
-        a(f'    <param name="seed" value="{int(cfg.seed) * 1000 + i}"/>')
+        a(f'    <param name="seed" value="{int(cfg.seed) * 1000}"/>')
         a("  </node>")
+    else:
+        for i in range(n):
+            a(f'  <node pkg="patrolling_sim" type="patrol_agent" name="patrol_robot{i}" '
+              f'output="log" args={_attr(f"{cfg.map_name} {i}")}>')
+            a(f'    <param name="algorithm" value={_attr(cfg.alg)}/>')
+            a(f'    <param name="map" value={_attr(cfg.map)}/>')
+            a(f'    <param name="team_size" value="{n}"/>')
+            a(f'    <param name="seed" value="{int(cfg.seed) * 1000 + i}"/>')
+            a("  </node>")
     if cfg.rviz:
         a("")
         a('  <node pkg="rviz" type="rviz" name="rviz" '

@@ -118,26 +118,34 @@ def read_info(prefix):
 
 
 class _RosWatcher:
-    """Subscribes /clock and /results of the experiment's master from this process."""
+    """Follows the experiment from this process: the simulator's status (sim time and
+    achieved real-time factor, every 2 s wall; cheaper than /clock at every step) and
+    /results (GO, visits)."""
 
     def __init__(self, master_uri):
         os.environ["ROS_MASTER_URI"] = master_uri
         os.environ["ROS_IP"] = "127.0.0.1"
         import rospy
-        from rosgraph_msgs.msg import Clock
-        from std_msgs.msg import Int16MultiArray
+        from std_msgs.msg import Int16MultiArray, String
         self.rospy = rospy
         self.sim_time = 0.0
+        self.rtf = None
         self.go = False
         self.visits = 0
         self.ready = set()
         rospy.init_node(f"experiment_runner_{os.getpid()}", anonymous=False,
                         disable_signals=True, disable_rosout=False)
-        rospy.Subscriber("/clock", Clock, self._clock, queue_size=1)
+        rospy.Subscriber("/stage2d/status", String, self._status, queue_size=1)
         rospy.Subscriber("/results", Int16MultiArray, self._results, queue_size=100)
 
-    def _clock(self, msg):
-        self.sim_time = msg.clock.to_sec()
+    def _status(self, msg):
+        import json
+        try:
+            st = json.loads(msg.data)
+            self.sim_time = float(st["sim_time"])
+            self.rtf = float(st["rtf"])
+        except (ValueError, KeyError, TypeError):
+            pass
 
     def _results(self, msg):
         d = list(msg.data)
@@ -246,11 +254,14 @@ class Experiment:
             last_print = 0.0
             last_clock = (0.0, time.monotonic())
             limit = self.wall_limit()
+            last_refresh = 0.0
             while outcome_reason is None:
-                tree.refresh()
+                now = time.monotonic()
+                if now - last_refresh >= 2.0:   # remember our descendants (reads all of /proc)
+                    tree.refresh()
+                    last_refresh = now
                 if proc.poll() is not None:
                     break
-                now = time.monotonic()
                 with self._lock:
                     reason = self._stop_reason
                 if reason:
@@ -274,9 +285,11 @@ class Experiment:
                         last_print = now
                         cycles, avg = read_progress(self.prefix)
                         avg_s = f"{avg:.1f} s" if avg is not None else "-"
+                        rtf_s = f"{watcher.rtf:.2f}x" if watcher.rtf else "-"
                         self.out(f"progress: sim {watcher.sim_time:.1f} s | go "
                                  f"{'yes' if watcher.go else 'no'} | cycles {cycles} | "
-                                 f"avg idleness {avg_s} | visits {watcher.visits}")
+                                 f"avg idleness {avg_s} | visits {watcher.visits} | "
+                                 f"pace {rtf_s}")
                 if limit and now - t_start > limit:
                     outcome_reason = f"wall-clock limit of {limit:.0f} s exceeded"
                     break
