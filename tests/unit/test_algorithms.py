@@ -318,3 +318,48 @@ def test_cgg_route_within_10_percent_of_best_found(mapname):
         for t in (tsp_tour(g.dist, verts, seed=s, restarts=6 if g.n > 100 else 16)
                   for s in ((7,) if g.n > 100 else (7, 99, 2024))))
     assert route_cost(g, r) <= 1.1 * best + 1e-6
+
+
+def test_hpcc_goal_is_the_formula_argmax_with_random_ties():
+    """The vectorised goal choice is the documented formula's argmax, ties broken with the
+    robot's generator exactly as argmax_random does (same draws, same result)."""
+    from patrolling_sim.algorithms.base import argmax_random
+    g = graph("cumberland")
+    rng = random.Random(5)
+    for trial in range(40):
+        s, _ = make("HPCC", "cumberland", seed=trial)
+        s.start(trial % g.n, 0.0)
+        u = s.current
+        s.idleness = [float(rng.choice([0.0, 10.0, 50.0, rng.uniform(0, 300)]))
+                      for _ in range(g.n)]
+        cands = [v for v in range(g.n) if v != u and g.dist[u, v] < float("inf")]
+        dmax = max(g.dist[u, v] for v in cands)
+        imax = max(s.idleness[v] for v in cands)
+        twin = random.Random()
+        twin.setstate(s.rng.getstate())
+        want = argmax_random(cands, lambda v: (dmax - g.dist[u, v]) / dmax
+                             + (s.idleness[v] / imax if imax > 0 else 0.0), twin)
+        route = s._plan()
+        assert route[-1] == want
+        assert s.rng.getstate() == twin.getstate()
+
+
+def test_dtap_task_set_and_centre_follow_the_bids():
+    """DTAP keeps its task set (vertices whose best bidder it is) incrementally and the
+    centre (task minimising the summed path costs, lowest id on ties) equals a recomputation
+    from scratch after every change."""
+    g = graph("cumberland")
+    s, _ = make("DTAP", "cumberland", rid=1, n=3)
+    s.start(0, 0.0)
+    rng = random.Random(3)
+    for _ in range(400):
+        v = rng.randrange(g.n)
+        if rng.random() < 0.2:
+            s._drop(v)
+        else:
+            s.record_bid(v, rng.choice([0.0, 5.0, rng.uniform(0, 500)]), rng.randrange(3))
+        tasks = sorted(k for k, (_, r) in s.best_bid.items() if r == s.id)
+        assert s.tasks == tasks
+        if tasks:
+            want = min(tasks, key=lambda c: (sum(g.dist[c, t] for t in tasks), c))
+            assert s.task_center(tasks) == want

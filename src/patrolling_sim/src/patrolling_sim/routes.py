@@ -29,50 +29,57 @@ def _tour_cost(D, tour):
 
 
 def _two_opt(D, tour):
-    n = len(tour)
+    """2-opt: for each position i, reverse the segment that shortens the tour most, until no
+    reversal helps (the candidate j are scored together with numpy)."""
+    t = np.array(tour)
+    n = len(t)
     improved = True
     while improved:
         improved = False
         for i in range(n - 1):
-            a, b = tour[i], tour[i + 1]
-            for j in range(i + 2, n if i > 0 else n - 1):
-                c, d = tour[j], tour[(j + 1) % n]
-                delta = D[a, c] + D[b, d] - D[a, b] - D[c, d]
-                if delta < -1e-9:
-                    tour[i + 1:j + 1] = tour[i + 1:j + 1][::-1]
-                    improved = True
-                    a, b = tour[i], tour[i + 1]
-    return tour
+            j = np.arange(i + 2, n if i > 0 else n - 1)
+            if not len(j):
+                continue
+            a, b = t[i], t[i + 1]
+            c, d = t[j], t[(j + 1) % n]
+            delta = D[a, c] + D[b, d] - D[a, b] - D[c, d]
+            k = int(np.argmin(delta))
+            if delta[k] < -1e-9:
+                jj = int(j[k])
+                t[i + 1:jj + 1] = t[i + 1:jj + 1][::-1].copy()
+                improved = True
+    return t.tolist()
 
 
 def _or_opt(D, tour):
-    """Move segments of 1-3 vertices elsewhere in the tour while that shortens it."""
-    n = len(tour)
+    """Or-opt: move a segment of 1-3 vertices (either way round) to where it shortens the tour
+    most, while some move helps (all insertion points scored together with numpy)."""
+    t = np.array(tour)
+    n = len(t)
     improved = True
     while improved:
         improved = False
         for seg in (1, 2, 3):
+            if seg >= n - 2:
+                break
             for i in range(n):
-                if seg >= n - 2:
-                    break
-                idx = [(i + k) % n for k in range(seg)]
-                prev, nxt = tour[(i - 1) % n], tour[(i + seg) % n]
-                s0, s1 = tour[idx[0]], tour[idx[-1]]
+                s0, s1 = t[i], t[(i + seg - 1) % n]
+                prev, nxt = t[(i - 1) % n], t[(i + seg) % n]
                 remove_gain = D[prev, s0] + D[s1, nxt] - D[prev, nxt]
-                rest = [tour[(i + seg + k) % n] for k in range(n - seg)]
-                segment = [tour[j] for j in idx]
-                best = None
-                for j in range(len(rest) - 1):
-                    p, q = rest[j], rest[j + 1]
-                    for seq in (segment, segment[::-1]):
-                        add = D[p, seq[0]] + D[seq[-1], q] - D[p, q]
-                        if add < remove_gain - 1e-9 and (best is None or add < best[0]):
-                            best = (add, j, seq)
-                if best:
-                    _, j, seq = best
-                    tour[:] = rest[:j + 1] + list(seq) + rest[j + 1:]
+                rest = np.roll(t, -(i + seg))[:n - seg]
+                p, q = rest[:-1], rest[1:]
+                base = D[p, q]
+                fwd = D[p, s0] + D[s1, q] - base          # segment as is
+                rev = D[p, s1] + D[s0, q] - base          # reversed
+                kf, kr = int(np.argmin(fwd)), int(np.argmin(rev))
+                add, j, flip = (fwd[kf], kf, False) if fwd[kf] <= rev[kr] else (rev[kr], kr, True)
+                if add < remove_gain - 1e-9:
+                    segment = np.roll(t, -i)[:seg]
+                    if flip:
+                        segment = segment[::-1]
+                    t = np.concatenate([rest[:j + 1], segment, rest[j + 1:]])
                     improved = True
-    return tour
+    return t.tolist()
 
 
 def _nearest_neighbour(D, start, vertices):

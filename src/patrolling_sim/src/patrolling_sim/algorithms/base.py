@@ -153,8 +153,7 @@ class PatrolStrategy:
         raise NotImplementedError
 
     def update_idleness(self, now: float) -> None:
-        for v in range(self.graph.n):
-            self.idleness[v] = now - self.last_visit[v]
+        self.idleness[:] = [now - t for t in self.last_visit]
 
     def send(self, *payload: int) -> None:
         """Send ``[own_id, *payload]`` through the driver."""

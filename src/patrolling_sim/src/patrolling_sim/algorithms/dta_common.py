@@ -60,8 +60,19 @@ def dta_params(ctx, file_name, defaults):
     return {k: float(got.get(k, 0.0)) for k in defaults}
 
 
+_last_decoded = (None, None)     # (message object, its payload as an array)
+
+
 def decode_idleness(data, n):
-    """(values, next) from ``[id, 40, I_0..I_{n-1}, next]``, or None if malformed."""
+    """(values as a float array of 10 x seconds, next) from ``[id, 40, I_0..I_{n-1}, next]``,
+    or None if malformed. A broadcast hands the same message object to every receiver in
+    turn (graph mode), so the last conversion is reused for that very object."""
+    global _last_decoded
     if len(data) != n + 3 or data[1] != MSG_DTA_IDLENESS:
         return None
-    return data[2:2 + n], data[2 + n]
+    obj, values = _last_decoded
+    if obj is not data:
+        values = np.asarray(data[2:2 + n], dtype=float)
+        values.flags.writeable = False
+        _last_decoded = (data, values)
+    return values, data[2 + n]

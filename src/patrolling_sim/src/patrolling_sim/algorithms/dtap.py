@@ -42,7 +42,9 @@ class DTASSIPart(PatrolStrategy):
         self.p = dta_params(ctx, "DTASSI", DEFAULTS)
         self.algorithm_params = ",".join(f"{self.p[k]:g}" for k in DEFAULTS)
         self.gi = None
-        self.best_bid = {}          # vertex -> (bid, robot id)
+        self.best_bid = {}          # vertex -> (bid, robot id); change it via _set_best/_drop
+        self._owned = set()         # vertices whose best bidder is this robot (its tasks)
+        self._center = (None, None)  # (tasks tuple, its centre), recomputed when tasks change
         self.won = None             # target after the current one, won at auction
         self.excluded = set()
         self.auction_token = 0
@@ -55,7 +57,28 @@ class DTASSIPart(PatrolStrategy):
 
     @property
     def tasks(self):
-        return sorted(v for v, (_, r) in self.best_bid.items() if r == self.id)
+        return sorted(self._owned)
+
+    def _set_best(self, v, bid, robot):
+        self.best_bid[v] = (bid, robot)
+        if robot == self.id:
+            self._owned.add(v)
+        else:
+            self._owned.discard(v)
+
+    def _drop(self, v):
+        self.best_bid.pop(v, None)
+        self._owned.discard(v)
+
+    def task_center(self, tasks):
+        """The task vertex minimising the summed path costs to all tasks (lowest id on ties),
+        recomputed only when the task set changes, as the original."""
+        key = tuple(tasks)
+        if self._center[0] != key:
+            D = self.graph.dist
+            sums = D[np.ix_(key, key)].sum(axis=1)
+            self._center = (key, key[int(np.argmin(sums))])
+        return self._center[1]
 
     def utility(self, cv, g):
         """U(cv, v) for every vertex v (numpy array)."""
@@ -67,17 +90,16 @@ class DTASSIPart(PatrolStrategy):
         if v in (self.next, self.won):
             return 0.0
         tasks = self.tasks
-        D = self.graph.dist
         if tasks:
-            center = min(tasks, key=lambda c: (sum(D[c, t] for t in tasks), c))
+            center = self.task_center(tasks)
         else:
             center = self.next if self.next is not None else self.current
-        return float(D[v, center]) * (1 + len(tasks))
+        return float(self.graph.dist[v, center]) * (1 + len(tasks))
 
     def record_bid(self, v, bid, robot):
         old = self.best_bid.get(v)
         if old is None or old[0] >= (1.0 + self.p["hist"]) * bid:
-            self.best_bid[v] = (bid, robot)
+            self._set_best(v, bid, robot)
 
     # -- decisions --------------------------------------------------------------------------
     def _best_candidate(self, cv, now, exclude):
@@ -98,7 +120,7 @@ class DTASSIPart(PatrolStrategy):
             if nxt is None:             # a one-vertex graph
                 nxt = u
         self.won = None
-        self.best_bid.pop(nxt, None)
+        self._drop(nxt)
         self.gi.advance(now)[nxt] = 0.0
         self.next = nxt
         self.excluded = {nxt, u}
@@ -108,7 +130,7 @@ class DTASSIPart(PatrolStrategy):
     def on_arrival(self, vertex, now):
         super().on_arrival(vertex, now)
         self.gi.advance(now)[vertex] = 0.0
-        self.best_bid.pop(vertex, None)
+        self._drop(vertex)
 
     def next_vertex(self, now):
         v = super().next_vertex(now)

@@ -11,7 +11,9 @@ Idleness is local.
 """
 import heapq
 
-from .base import PatrolStrategy, argmax_random, register
+import numpy as np
+
+from .base import PatrolStrategy, register
 
 
 @register
@@ -35,17 +37,19 @@ class HeuristicPathfinderConscientiousCognitive(PatrolStrategy):
 
     def _plan(self):
         u, g = self.current, self.graph
-        d = g.dist[u]
-        cands = [v for v in range(g.n) if v != u and d[v] < float("inf")]
-        if not cands:
+        d = np.asarray(g.dist[u], dtype=float)
+        mask = np.isfinite(d)
+        mask[u] = False
+        cands = np.flatnonzero(mask)
+        if not len(cands):
             return [u]
-        dmax = max(d[v] for v in cands)
-        imax = max(self.idleness[v] for v in cands)
-
-        def score(v):
-            s = (dmax - d[v]) / dmax if dmax > 0 else 0.0
-            return s + (self.idleness[v] / imax if imax > 0 else 0.0)
-        goal = argmax_random(cands, score, self.rng)
+        idl = np.asarray(self.idleness, dtype=float)
+        dv, iv = d[cands], idl[cands]
+        dmax, imax = float(dv.max()), float(iv.max())
+        score = (dmax - dv) / dmax if dmax > 0 else np.zeros(len(cands))
+        score = score + (iv / imax if imax > 0 else 0.0)
+        ties = cands[score >= score.max() - 1e-9].tolist()     # as argmax_random
+        goal = ties[0] if len(ties) == 1 else self.rng.choice(ties)
         return self._path(u, goal, imax)[1:]
 
     def _arc(self, i, j, imax):
