@@ -24,6 +24,7 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <geometry_msgs/Twist.h>
 #include <nav_msgs/Odometry.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/LaserScan.h>
@@ -215,6 +216,7 @@ class Stage2D {
   void place(Robot& r, double x, double y, double yaw);
   void step_once();
   double stale_command_fraction() const;
+  void wait_for_commands();
   void publish_state();
   void compute_scans(const std::vector<int>& which);
   void scan_robot(Robot& r);
@@ -248,6 +250,10 @@ class Stage2D {
   int threads_ = 0;
   int substeps_ = 5;
   bool scan_always_ = false;  // benchmarking: compute scans without subscribers
+  // command-synchronised stepping: before a step, wait (at most sync_timeout_ wall seconds)
+  // for a fresh cmd_vel from every robot that was commanded during the previous step
+  double sync_timeout_ = 0.1;
+  long sync_waits_ = 0, sync_timeouts_ = 0;
 
   // laser beam directions (robot laser frame)
   std::vector<double> beam_cos_, beam_sin_;
@@ -362,6 +368,7 @@ void Stage2D::setup() {
   render_scale_ = positive("render_scale", 0.0, true);
   threads_ = param<int>("threads", 0);
   scan_always_ = param<bool>("scan_always", false);
+  sync_timeout_ = positive("sync_timeout", 0.1, true);
   // default: physics sub-steps of at most 10 ms
   substeps_ = param<int>("physics_substeps", std::max(1, static_cast<int>(std::ceil(step_ / 0.01 - 1e-9))));
   if (substeps_ < 1) throw InputError("parameter ~physics_substeps must be >= 1");
@@ -847,6 +854,30 @@ cv::Mat Stage2D::render() {
   return img;
 }
 
+void Stage2D::wait_for_commands() {
+  // A robot is waited for if its newest command arrived during the previous step (it is
+  // being driven at the step rate) but none has arrived since the last state was published.
+  // A controller that stops, or commands more slowly than the step, is not waited for after
+  // one missed step, so a dead node costs at most one timeout.
+  if (sync_timeout_ <= 0) return;
+  auto pending = [this]() {
+    for (const Robot& r : robots_)
+      if (r.last_cmd >= sim_time_ - step_ - 1e-9 && r.last_cmd < sim_time_ - 1e-9) return true;
+    return false;
+  };
+  if (!pending()) return;
+  ++sync_waits_;
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                         std::chrono::duration<double>(sync_timeout_));
+  while (ros::ok() && pending()) {
+    if (std::chrono::steady_clock::now() >= deadline) {
+      ++sync_timeouts_;
+      return;
+    }
+    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
+  }
+}
+
 double Stage2D::stale_command_fraction() const {
   long driven = 0, stale = 0;
   for (const Robot& r : robots_) {
@@ -871,7 +902,8 @@ void Stage2D::publish_status(double rtf) {
        << ", \"touching\": " << (r.touching > 0 ? "true" : "false") << "}";
   }
   js << "], \"wall_contacts\": " << contacts_->wall << ", \"robot_contacts\": " << contacts_->robot
-     << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction()) << "}";
+     << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction())
+     << ", \"sync_waits\": " << sync_waits_ << ", \"sync_timeouts\": " << sync_timeouts_ << "}";
   std_msgs::String m;
   m.data = js.str();
   status_pub_.publish(m);
@@ -888,6 +920,7 @@ void Stage2D::run() {
   publish_status(0);
   while (ros::ok()) {
     ros::spinOnce();
+    wait_for_commands();
     step_once();
     publish_state();
     if (snapshot_period_ > 0 && sim_time_ + 1e-9 >= next_snapshot_) {
@@ -918,9 +951,9 @@ void Stage2D::run() {
     double since_log = std::chrono::duration<double>(now - log_wall).count();
     if (since_log >= log_period_) {
       ROS_INFO("stage2d: sim time %.1f s, real-time factor %.2f (speedup %g), %zu robots, contacts wall %ld robot %ld, "
-               "stale commands %.1f%%",
+               "stale commands %.1f%%, command waits %ld (timeouts %ld)",
                sim_time_, (sim_time_ - log_sim) / since_log, speedup_, robots_.size(), contacts_->wall, contacts_->robot,
-               100.0 * stale_command_fraction());
+               100.0 * stale_command_fraction(), sync_waits_, sync_timeouts_);
       log_sim = sim_time_;
       log_wall = now;
     }
