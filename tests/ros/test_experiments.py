@@ -175,6 +175,8 @@ def test_bad_arguments_start_nothing(tmp_path):
                          (["--map", "grid", "--robots", "two", "--alg", "CR"], "--robots"),
                          (["--map", "grid", "--robots", "2", "--alg", "CR", "--timeout", "-5"],
                           "--timeout"),
+                         (["--map", "grid", "--robots", "2", "--alg", "CR", "--speedup", "0"],
+                          "--speedup"),
                          (["grid", "2", "default", "CR", "AMCL", "ros", "x", "0", "xterm",
                            "60"], "GWAIT"),
                          (["grid", "2", "default", "CR"], "needs 10 to 12 arguments")):

@@ -49,7 +49,8 @@ def build_parser():
     ap.add_argument("--loss", type=float, help="lost message rate [0, 1)")
     ap.add_argument("--timeout", type=float, help="sim seconds after GO (0 = none)")
     ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
-    ap.add_argument("--speedup", type=float, help="simulator pace (<= 0: as fast as possible)")
+    ap.add_argument("--speedup", type=float,
+                    help="simulator pace > 0 (1 = real time; an upper bound, see the README)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--processes", help="shared (default: agents in one process, each robot's "
                     "localisation + navigation in one) | separate (one process per node)")

@@ -16,7 +16,8 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     loss         lost_message_rate in [0, 1)                         (0)
     timeout      sim seconds after GO; 0 = no timeout                (0)
     cycles       stop after k complete patrol cycles; 0 = no limit   (0)
-    speedup      simulator pace: 1 = real time, <= 0 = as fast as possible   (1)
+    speedup      simulator pace (> 0): 1 = real time, 4 = four times faster   (1); an upper
+                 bound: the simulator waits for late navigation commands
     seed         random seed of agents and simulator noise           (0)
     results_dir  results root                                        (<workspace>/results)
     rviz         open rviz with launch/patrol.rviz                   (false)
@@ -137,6 +138,10 @@ class ExperimentConfig:
             if getattr(self, name) < 0:
                 raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be >= 0, "
                                        f"got {getattr(self, name)}")
+        if not self.speedup > 0:
+            raise PatrolInputError(
+                f"argument --speedup: must be > 0, got {self.speedup:g} (an experiment needs a "
+                f"pace the agents and the navigation can follow, e.g. 4; see the README)")
         if not 0 <= self.loss < 1:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
         if self.cycles < 0:
