@@ -4,7 +4,9 @@
 ~goals: "x y EXPECT; x y EXPECT; ..." with EXPECT S (succeeded), A (aborted with a reason) or
 SA (either, e.g. goal behind a temporary obstacle). ~map: yaml (to compute the shortest path
 length); ~time_factor: a SUCCEEDED goal must take <= time_factor x shortest-path length at
-max speed 1 m/s (0 = no check; only for S goals); ~max_contacts (-1 = no check);
+max speed 1 m/s (0 = no check; only for S goals); ~max_contacts (-1 = no check): robot
+contacts counted by the simulator (/contacts of the kinematic test sim, or wall + robot
+contacts from /stage2d/status);
 ~simple_goal "x y": finally published on move_base_simple/goal, the robot must get there.
 """
 import math
@@ -18,7 +20,7 @@ from actionlib_msgs.msg import GoalStatus
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry, Path
-from std_msgs.msg import Int32
+from std_msgs.msg import Int32, String
 from std_srvs.srv import Empty
 
 from patrolling_sim.mapio import load_map
@@ -42,6 +44,7 @@ class NavGoals(unittest.TestCase):
         self.plans = 0
         rospy.Subscriber(f"/{ns}/base_pose_ground_truth", Odometry, self.on_truth)
         rospy.Subscriber("/contacts", Int32, self.on_contacts)
+        rospy.Subscriber("/stage2d/status", String, self.on_status)
         rospy.Subscriber(f"/{ns}/move_base/plan", Path, self.on_plan)
         client = actionlib.SimpleActionClient(f"/{ns}/move_base", MoveBaseAction)
         self.assertTrue(client.wait_for_server(rospy.Duration(60)), "no move_base server")
@@ -115,6 +118,11 @@ class NavGoals(unittest.TestCase):
 
     def on_contacts(self, msg):
         self.contacts = msg.data
+
+    def on_status(self, msg):
+        import json
+        st = json.loads(msg.data)
+        self.contacts = int(st["wall_contacts"]) + int(st["robot_contacts"])
 
     def on_plan(self, _msg):
         self.plans += 1
