@@ -181,3 +181,54 @@ def test_rviz_loads_config_and_shows_map(tmp_path):
     cv2.imwrite(str(tmp_path / "render.png"), render)
     assert light > 0.2, f"map not visible in the 3D view ({light:.1%} light pixels)"
     assert red > 0.002, f"graph markers not visible ({red:.2%} red pixels)"
+
+
+SHOOT_RUN = r'''
+shot="$1"; delay="$2"; shift 2
+"$@" > "$shot.runner.log" 2>&1 &
+RUN=$!
+sleep "$delay"
+xwd -root -silent > "$shot"
+wait $RUN
+'''
+
+
+def test_rviz_during_a_one_robot_experiment(tmp_path):
+    """start_experiments.py --rviz on a virtual screen: rviz opens the run's own config
+    while the experiment runs, logs no error, and shows the map, the graph and the robot;
+    the run still ends normally with complete files."""
+    import cv2
+    from rosenv import ros_env
+    env = dict(ros_env())
+    shot = tmp_path / "run.xwd"
+    start = os.path.join(ROOT, "scripts", "start_experiments.py")
+    r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", "bash", "-c",
+                        SHOOT_RUN, "shoot", str(shot), "22", "/usr/bin/python3", start,
+                        "--map", "grid", "--robots", "1", "--alg", "CR", "--loc",
+                        "fake_localization", "--timeout", "50", "--speedup", "2", "--rviz",
+                        "--results-dir", str(tmp_path / "res")],
+                       env=env, timeout=400, start_new_session=True)
+    out = (tmp_path / "run.xwd.runner.log").read_text()
+    assert r.returncode == 0, out[-3000:]
+    prefix = next(p[:-len("_info.csv")] for p in glob_all(tmp_path / "res", "*_info.csv"))
+    assert os.path.isfile(prefix + "_patrol.rviz")
+    logs = glob_all(prefix + "_logs", "rviz*.log")
+    assert logs, os.listdir(prefix + "_logs")
+    text = "\n".join(open(p, errors="replace").read() for p in logs)
+    bad = [line for line in text.splitlines()
+           if ("ERROR" in line.upper() or "could not be loaded" in line)
+           and "media_export" not in line and "librospack" not in line
+           and "glsl120/indexed_8bit_image" not in line]
+    assert not bad, "\n".join(bad)
+    png = tmp_path / "run.png"
+    subprocess.run(["convert", f"xwd:{shot}", str(png)], check=True)
+    img = cv2.imread(str(png))
+    assert img is not None and img.std() > 20, "screenshot is blank"
+    render = img[120:680, 420:1220]
+    light = (render.min(axis=2) > 180).mean()
+    assert light > 0.1, f"map not visible in the 3D view ({light:.1%} light pixels)"
+
+
+def glob_all(folder, pattern):
+    import glob
+    return sorted(glob.glob(os.path.join(str(folder), "**", pattern), recursive=True))

@@ -9,6 +9,7 @@ sim time, patrol cycles, average idleness. Stop sends SIGINT to that child, whic
 the run in order so the result files are complete.
 """
 import os
+import queue
 import re
 import signal
 import subprocess
@@ -20,6 +21,7 @@ from .. import paths
 from ..errors import PatrolInputError
 from .config import LOC_MODES, NAV_MODES, ExperimentConfig, load_config_file
 
+POLL_MS = 100
 PROGRESS_RE = re.compile(r"progress: sim ([\d.]+) s \| go (\w+) \| cycles (\d+) \| "
                          r"avg idleness ([\d.]+ s|-)")
 
@@ -50,6 +52,8 @@ class LauncherApp:
         self.root = root
         self.script = script
         self.proc = None
+        # the reader thread only fills this queue; Tk is touched from the main loop alone
+        self.events = queue.Queue()
         root.title("MRP Experiment Launcher")
         try:
             ttk.Style().theme_use("alt")
@@ -132,12 +136,27 @@ class LauncherApp:
         self.start_btn.configure(state="disabled")
         self.stop_btn.configure(state="normal")
         threading.Thread(target=self._reader, args=(self.proc,), daemon=True).start()
+        self.root.after(POLL_MS, self._poll)
 
     def _reader(self, proc):
         for line in proc.stdout:
-            self.root.after(0, self._on_line, line.rstrip("\n"))
+            self.events.put(("line", line.rstrip("\n")))
         proc.wait()
-        self.root.after(0, self._on_exit, proc.returncode)
+        self.events.put(("exit", proc.returncode))
+
+    def _poll(self):
+        """Main-loop side of the reader: drain its queue (Tk is not thread-safe)."""
+        try:
+            while True:
+                kind, value = self.events.get_nowait()
+                if kind == "line":
+                    self._on_line(value)
+                else:
+                    self._on_exit(value)
+                    return
+        except queue.Empty:
+            pass
+        self.root.after(POLL_MS, self._poll)
 
     def _on_line(self, line):
         m = PROGRESS_RE.search(line)
