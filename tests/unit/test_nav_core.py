@@ -367,3 +367,44 @@ def test_controller_brakes_harder_for_unmapped_points():
     close = np.array([[0.6, 0.0]])
     assert not compute_command((0.0, 0.0, 0.0), 0.8, 0.0, path, 0, close, 0.1, p).blocked
     assert compute_command((0.0, 0.0, 0.0), 0.8, 0.0, path, 0, close, 0.1, p, close).blocked
+
+
+@pytest.mark.parametrize("name", ["grid", "cumberland"])
+def test_planner_windowed_search_with_obstacles_is_exact(name):
+    """The search around temporary obstacles runs in a window; its path cost must equal a
+    whole-map Dijkstra with the same obstacles (from the start and goal cells the plan used)."""
+    from scipy.sparse.csgraph import dijkstra
+    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
+    p = GlobalPlanner(m, obstacle_margin=0.2)
+    rng = np.random.default_rng(7)
+    free = np.argwhere(~p.lethal)
+    checked = 0
+    for _ in range(40):
+        (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
+        start, goal = p.cell_center(ai, aj), p.cell_center(bi, bj)
+        try:
+            base = p.plan(start, goal)
+        except PlanningError:
+            continue
+        # one to three robots standing on or near the obstacle-free optimum
+        pts = base[rng.integers(len(base), size=rng.integers(1, 4))] + \
+            rng.normal(0.0, 0.3, (3, 2))[:1]
+        p.set_obstacles(pts)
+        si, sj = p.cell(*start)
+        if p.blocked_mask()[sj, si]:
+            p.clear_obstacles()
+            continue
+        try:
+            path = p.plan(start, goal)
+            cost = p.path_cost(start)
+            g = p._field[0]
+        except PlanningError:
+            cost, g = math.inf, None
+        if g is not None:
+            ref = dijkstra(p._csgraph(), directed=True, indices=g)[sj * p.w + si]
+            assert cost == pytest.approx(ref, rel=1e-5), (start, goal, pts)
+            # (the last point is the goal itself, which may lie beside a robot)
+            assert path_blocked(path[:-1], pts, p.robot_radius) is None
+            checked += 1
+        p.clear_obstacles()
+    assert checked >= 12 and p.window_searches >= 5, (checked, p.window_searches)

@@ -858,11 +858,15 @@ void Stage2D::wait_for_commands() {
   // A robot is waited for if its newest command arrived during the previous step (it is
   // being driven at the step rate) but none has arrived since the last state was published.
   // A controller that stops, or commands more slowly than the step, is not waited for after
-  // one missed step, so a dead node costs at most one timeout.
+  // one missed step, so a dead node costs at most one timeout. A robot told to stand still
+  // is not waited for either: a controller that stopped it (goal reached, planning a new
+  // path) often sends nothing more for a while, and a late start costs one step at most.
   if (sync_timeout_ <= 0) return;
   auto pending = [this]() {
     for (const Robot& r : robots_)
-      if (r.last_cmd >= sim_time_ - step_ - 1e-9 && r.last_cmd < sim_time_ - 1e-9) return true;
+      if (r.last_cmd >= sim_time_ - step_ - 1e-9 && r.last_cmd < sim_time_ - 1e-9 &&
+          (r.cmd_v != 0.0 || r.cmd_w != 0.0))
+        return true;
     return false;
   };
   if (!pending()) return;

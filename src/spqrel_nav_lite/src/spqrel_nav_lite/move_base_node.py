@@ -95,6 +95,14 @@ class MoveBase:
         self.server.start()
         self.client = None
         rospy.Subscriber("move_base_simple/goal", PoseStamped, self.on_simple_goal, queue_size=1)
+        self.plans = 0
+        rospy.on_shutdown(self.log_statistics)
+
+    def log_statistics(self):
+        pl = self.planner
+        rospy.loginfo("move_base: %d plans, %d Dijkstra searches (%d with obstacles in a window), "
+                      "%d navigation functions cached", self.plans, pl.searches,
+                      pl.window_searches, len(pl._cache))
 
     # -- inputs -----------------------------------------------------------------------------------
     def on_odom(self, msg):
@@ -216,6 +224,7 @@ class MoveBase:
                 pts = self.memory.points() if with_obstacles else np.zeros((0, 2))
             self.planner.set_obstacles(pts)
         path = self.planner.plan(pose[:2], goal, tolerance=self.cp.xy_goal_tolerance)
+        self.plans += 1
         self.publish_plan(path)
         return path
 

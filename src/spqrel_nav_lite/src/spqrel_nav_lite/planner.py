@@ -11,6 +11,13 @@ the cells within ``robot_radius + obstacle_margin`` of them.
 Patrol goals repeat (the same graph vertices over and over), so navigation functions computed
 without temporary obstacles are kept in a least-recently-used cache bounded in bytes
 (``cache_bytes``): a goal seen before costs no search at all while nothing is in the way.
+
+When the obstacle-free optimum crosses a temporary obstacle, the search with obstacles runs in
+a window around start and goal, grown until it is provably exact: a path that leaves the window
+passes a cell ``b`` just outside it and costs at least ``|start - b| + d_free(b)`` (edge costs
+are at least their length, and obstacles only remove edges), so a window path no dearer than
+the smallest such bound is optimal on the whole map. The window grows (doubling its margin)
+until that holds or it covers the map.
 """
 import math
 from collections import OrderedDict
@@ -18,6 +25,9 @@ from collections import OrderedDict
 import numpy as np
 
 from patrolling_sim.mapio import FREE
+
+
+WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
 
 
 class PlanningError(Exception):
@@ -50,6 +60,7 @@ class GlobalPlanner:
         self._build_edges()
         self._obstacles = np.zeros((self.h, self.w), dtype=bool)
         self._field = None      # (goal_index, dist, pred, computed without obstacles)
+        self.window_searches = 0        # searches with obstacles that stayed in a window
         self._cache = OrderedDict()     # goal_index -> (dist, pred) without obstacles
         self._cache_cap = max(0, int(cache_bytes)) // max(1, self.h * self.w * 8)
         self.searches = 0               # Dijkstra runs so far (statistics)
@@ -87,9 +98,13 @@ class GlobalPlanner:
             src.append(a[m])
             dst.append(b[m])
             wt.append(length * 0.5 * (ca + cb))
-        self._src = np.concatenate(src).astype(np.int32)
-        self._dst = np.concatenate(dst).astype(np.int32)
-        self._wt = np.concatenate(wt)
+        src = np.concatenate(src).astype(np.int32)
+        order = np.argsort(src, kind="stable")          # by source cell, hence by source row
+        self._src = src[order]
+        self._dst = np.concatenate(dst).astype(np.int32)[order]
+        self._wt = np.concatenate(wt)[order]
+        # edges whose source lies in rows [j0, j1): _src[_row_start[j0]:_row_start[j1]]
+        self._row_start = np.searchsorted(self._src, np.arange(h + 1) * w).astype(np.int64)
         self._free_graph = None
         self._graph = None
 
@@ -204,11 +219,15 @@ class GlobalPlanner:
         if self._field is None or self._field[0] != g:
             self._field = (g,) + self._navigation_function(g, free=True)
         cells = self._walk(s, g)
+        if cells is None and not self._field[3] and self._field[4] is not None:
+            # a window field from an earlier position that the robot has left: search again
+            self._field = (g,) + self._obstacle_field(s, g)
+            cells = self._walk(s, g)
         if cells is not None and self._obstacles.any() and self._field[3] and \
                 self._obstacles.ravel()[cells].any():
             # the obstacle-free optimum crosses a temporary obstacle: search around it
             # (otherwise that path is optimal with the obstacles too: they only remove cells)
-            self._field = (g,) + self._navigation_function(g, free=False)
+            self._field = (g,) + self._obstacle_field(s, g, free_dist=self._field[1])
             cells = self._walk(s, g)
         if cells is None:
             raise PlanningError(f"no path from ({start[0]:.2f}, {start[1]:.2f}) to goal "
@@ -221,7 +240,7 @@ class GlobalPlanner:
 
     def _walk(self, s, g):
         """Cell indices from ``s`` to ``g`` along the current field, or None if unreachable."""
-        _, dist, pred, _ = self._field
+        dist, pred = self._field[1], self._field[2]
         if not np.isfinite(dist[s]):
             return None
         cells = [s]
@@ -236,7 +255,7 @@ class GlobalPlanner:
         free = free or not self._obstacles.any()
         if free and g in self._cache:
             self._cache.move_to_end(g)
-            return self._cache[g] + (True,)
+            return self._cache[g] + (True, None)
         from scipy.sparse.csgraph import dijkstra
         graph = self._csgraph() if not free else (self._csgraph_free())
         dist, pred = dijkstra(graph, directed=True, indices=g, return_predecessors=True)
@@ -246,7 +265,86 @@ class GlobalPlanner:
             self._cache[g] = field
             while len(self._cache) > self._cache_cap:
                 self._cache.popitem(last=False)
-        return field + (free,)
+        return field + (free, None)
+
+    def _obstacle_field(self, s, g, free_dist=None):
+        """(dist, pred, False, window) of the search with temporary obstacles, exact on the
+        whole map (see the module notes); ``window`` is (i0, j0, i1, j1) or None for the whole
+        grid. ``free_dist``: the obstacle-free field of ``g`` (the lower bound outside)."""
+        if free_dist is None:
+            free_dist = self._navigation_function(g, free=True)[0]
+        w, h = self.w, self.h
+        si, sj, gi, gj = s % w, s // w, g % w, g // w
+        margin = max(int(math.ceil(WINDOW_MARGIN / self.res)),
+                     max(abs(si - gi), abs(sj - gj)) // 2)
+        while True:
+            i0, i1 = max(0, min(si, gi) - margin), min(w, max(si, gi) + margin + 1)
+            j0, j1 = max(0, min(sj, gj) - margin), min(h, max(sj, gj) + margin + 1)
+            if i0 == 0 and j0 == 0 and i1 == w and j1 == h:
+                return self._navigation_function(g, free=False)[:3] + (None,)
+            dist, pred = self._window_search(g, i0, j0, i1, j1)
+            self.searches += 1
+            ww = i1 - i0
+            cost = dist[(sj - j0) * ww + (si - i0)]
+            if cost <= self._outside_bound(si, sj, free_dist, i0, j0, i1, j1):
+                break
+            margin *= 2
+        self.window_searches += 1
+        full_d = np.full(w * h, np.inf, dtype=np.float32)
+        full_p = np.full(w * h, -9999, dtype=np.int32)
+        rows = np.arange(j0, j1)[:, None] * w + np.arange(i0, i1)[None, :]
+        full_d[rows.ravel()] = dist
+        ok = pred >= 0
+        lp = pred[ok]
+        full_p[rows.ravel()[ok]] = (lp // ww + j0) * w + lp % ww + i0
+        return full_d, full_p, False, (i0, j0, i1, j1)
+
+    def _window_search(self, g, i0, j0, i1, j1):
+        """Dijkstra from ``g`` over the cells of [i0, i1) x [j0, j1) without temporary
+        obstacles; (dist, pred) indexed by window cell (row-major), pred -9999 at roots."""
+        from scipy.sparse import csr_matrix
+        from scipy.sparse.csgraph import dijkstra
+        w, ww, wh = self.w, i1 - i0, j1 - j0
+        a, b = self._row_start[j0], self._row_start[j1]
+        src, dst, wt = self._src[a:b], self._dst[a:b], self._wt[a:b]
+        si, di, dj = src % w, dst % w, dst // w
+        flat = self._obstacles.ravel()
+        keep = (si >= i0) & (si < i1) & (di >= i0) & (di < i1) & (dj >= j0) & (dj < j1) & \
+            ~flat[src] & ~flat[dst]
+        ls = (src[keep] // w - j0) * ww + si[keep] - i0
+        ld = (dj[keep] - j0) * ww + di[keep] - i0
+        lw = wt[keep]
+        n = ww * wh
+        graph = csr_matrix((np.concatenate([lw, lw]), (np.concatenate([ls, ld]),
+                                                       np.concatenate([ld, ls]))), shape=(n, n))
+        gl = (g // w - j0) * ww + g % w - i0
+        dist, pred = dijkstra(graph, directed=True, indices=gl, return_predecessors=True)
+        return dist, pred
+
+    def _outside_bound(self, si, sj, free_dist, i0, j0, i1, j1):
+        """Lower bound on the cost of any path from (si, sj) that leaves the window: over the
+        cells just outside it, straight-line distance from the start plus the obstacle-free
+        distance to the goal."""
+        w, h = self.w, self.h
+        ring = []
+        if j0 > 0:
+            ring.append((np.arange(max(0, i0 - 1), min(w, i1 + 1)), np.full(1, j0 - 1)))
+        if j1 < h:
+            ring.append((np.arange(max(0, i0 - 1), min(w, i1 + 1)), np.full(1, j1)))
+        if i0 > 0:
+            ring.append((np.full(1, i0 - 1), np.arange(j0, j1)))
+        if i1 < w:
+            ring.append((np.full(1, i1), np.arange(j0, j1)))
+        best = np.inf
+        flat = self._obstacles.ravel()
+        for ii, jj in ring:
+            ii, jj = np.broadcast_arrays(ii, jj)
+            idx = jj * w + ii
+            lb = np.hypot(ii - si, jj - sj) * self.res + free_dist[idx]
+            lb = lb[~flat[idx]]
+            if len(lb):
+                best = min(best, float(lb.min()))
+        return best
 
     def _csgraph_free(self):
         if self._free_graph is None:
