@@ -6,10 +6,10 @@
 2. Global planning on broughton and DIAG_floor1: planner build time, and the time to plan
    the longest goal (farthest pair of patrol vertices) with a fresh navigation function.
 3. Live run (ROS, own master): patrol_stage2d at 1x with N robots on grid, each with
-   robot_nav.launch (fake_localization, then AMCL); every robot drives to random patrol
-   vertices for --duration wall seconds. CPU of each node is sampled from /proc and reported
-   per robot (move_base + fake_localization pair, amcl, move_base alone), plus the goal
-   outcomes.
+   robot_nav.launch (fake_localization, then AMCL; separate nodes, then the combined
+   robot_nav process); every robot drives to random patrol vertices for --duration wall
+   seconds. CPU of each node is sampled from /proc and reported per robot (localiser,
+   move_base, both together), plus the goal outcomes.
 
 Usage: bench/nav_bench.py [--robots 4] [--duration 60] [--skip-live] [--out docs/benchmarks/nav.md]
 """
@@ -77,17 +77,38 @@ def bench_planner(name):
     build = time.perf_counter() - t0
     d = np.hypot(*(g.pos[:, None] - g.pos[None]).transpose(2, 0, 1))
     a, b = np.unravel_index(np.argmax(d), d.shape)
-    times = []
+    times, hits = [], []
     for _ in range(5):
         p._field = None
+        p._cache.clear()                            # a goal never seen: Dijkstra over the map
         t0 = time.perf_counter()
         path = p.plan(g.pos[a], g.pos[b])
         times.append(time.perf_counter() - t0)
+        p._field = None                             # a goal seen before: from the LRU cache
+        t0 = time.perf_counter()
+        p.plan(g.pos[a], g.pos[b])
+        hits.append(time.perf_counter() - t0)
     t0 = time.perf_counter()
-    p.plan(g.pos[(a + 1) % g.n], g.pos[b])          # re-plan with the cached field
+    p.plan(g.pos[(a + 1) % g.n], g.pos[b])          # re-plan with the current field
     replan = time.perf_counter() - t0
+    # a robot standing on the path 3 m ahead: the windowed search around it, and for
+    # comparison the whole-map search with the same obstacle
+    ahead = path[min(len(path) - 1, int(3.0 / p.res))]
+    win, full = [], []
+    for _ in range(5):
+        p.set_obstacles(ahead[None, :])
+        t0 = time.perf_counter()
+        p.plan(path[0], g.pos[b])
+        win.append(time.perf_counter() - t0)
+        gi = p._field[0]
+        p._graph = None
+        t0 = time.perf_counter()
+        p._navigation_function(gi, free=False)
+        full.append(time.perf_counter() - t0)
+        p.clear_obstacles()
     return dict(cells=f"{p.w}x{p.h} @ {p.res:.3f} m", build=build, plan=float(np.median(times)),
-                replan=replan, length=path_length(path), pair=(int(a), int(b)))
+                hit=float(np.median(hits)), replan=replan, length=path_length(path),
+                pair=(int(a), int(b)), window=float(np.median(win)), full=float(np.median(full)))
 
 
 # -- live run ---------------------------------------------------------------------------------
@@ -153,7 +174,7 @@ def ticks(pid):
         return None
 
 
-def live_run(loc, n, duration, env):
+def live_run(loc, n, duration, env, combined=False):
     yaml_path, graph_path = map_paths("grid")
     g = PatrolGraph.load(graph_path)
     verts = list(range(g.n))
@@ -173,7 +194,8 @@ def live_run(loc, n, duration, env):
                   f'    <arg name="x" value="{g.pos[v][0]:.3f}"/>',
                   f'    <arg name="y" value="{g.pos[v][1]:.3f}"/>',
                   '    <arg name="yaw" value="0"/>',
-                  f'    <arg name="localization" value="{loc}"/>', '  </include>']
+                  f'    <arg name="localization" value="{loc}"/>',
+                  f'    <arg name="combined" value="{str(combined).lower()}"/>', '  </include>']
     lines.append('</launch>')
     tmp = tempfile.mkdtemp(prefix="navbench_")
     launch = os.path.join(tmp, "bench.launch")
@@ -280,30 +302,43 @@ def main():
             med, p95 = bench_localiser(name, n)
             rows.append(f"| {name} | {n} | {med:.2f} | {p95:.2f} |")
     rows += ["", "## Global planner (longest vertex pair)", "",
-             "| map | grid | build s | plan s (fresh Dijkstra) | re-plan s (cached field) "
-             "| path m |", "|---|---|---|---|---|---|"]
-    for name in ("broughton", "DIAG_floor1"):
+             "| map | grid | build s | plan s (new goal: Dijkstra) | plan s (goal seen before: "
+             "cache) | re-plan s (current field) | robot 3 m ahead: windowed search s | same, whole-map "
+             "search s | path m |", "|---|---|---|---|---|---|---|---|---|"]
+    for name in ("grid", "broughton", "DIAG_floor1"):
         r = bench_planner(name)
         rows.append(f"| {name} | {r['cells']} | {r['build']:.3f} | {r['plan']:.3f} | "
-                    f"{r['replan']:.4f} | {r['length']:.1f} (vertices {r['pair'][0]}->"
+                    f"{r['hit']:.4f} | {r['replan']:.4f} | {r['window']:.4f} | {r['full']:.3f} | "
+                    f"{r['length']:.1f} (vertices "
+                    f"{r['pair'][0]}->"
                     f"{r['pair'][1]}) |")
     if not a.skip_live:
         env = ros_env()
         rows += ["", f"## Live: grid, {a.robots} robots, patrol_stage2d at 1x, "
                  f"{a.duration:.0f} s wall, random vertex goals", "",
                  "CPU in % of one core, mean over the window (start-up excluded).", "",
-                 "| localisation | per robot: move_base | localiser | pair | simulator | goals |",
-                 "|---|---|---|---|---|---|"]
+                 "| localisation | processes per robot | move_base | localiser | localiser + "
+                 "move_base | simulator | goals |",
+                 "|---|---|---|---|---|---|---|"]
         for loc in ("fake_localization", "AMCL"):
-            cpu, out = live_run(loc, a.robots, a.duration, env)
-            mb = [v for k, v in cpu.items() if k.endswith("/move_base")]
-            lz = [v for k, v in cpu.items() if k.endswith("/amcl") or
-                  k.endswith("/fake_localization")]
-            sim = sum(v for k, v in cpu.items() if "stage2d" in k)
-            mmb = sum(mb) / max(1, len(mb))
-            mlz = sum(lz) / max(1, len(lz))
-            rows.append(f"| {loc} | {mmb:.1f} | {mlz:.1f} | {mmb + mlz:.1f} | {sim:.1f} | {out} |")
-            print(loc, {k: round(v, 1) for k, v in sorted(cpu.items())}, out, flush=True)
+            for combined in (False, True):
+                cpu, out = live_run(loc, a.robots, a.duration, env, combined)
+                sim = sum(v for k, v in cpu.items() if "stage2d" in k)
+                if combined:
+                    nav = [v for k, v in cpu.items() if k.endswith("/robot_nav")]
+                    mnav = sum(nav) / max(1, len(nav))
+                    rows.append(f"| {loc} | 1 (robot_nav) | - | - | {mnav:.1f} | {sim:.1f} | "
+                                f"{out} |")
+                else:
+                    mb = [v for k, v in cpu.items() if k.endswith("/move_base")]
+                    lz = [v for k, v in cpu.items() if k.endswith("/amcl") or
+                          k.endswith("/fake_localization")]
+                    mmb = sum(mb) / max(1, len(mb))
+                    mlz = sum(lz) / max(1, len(lz))
+                    rows.append(f"| {loc} | 2 (separate) | {mmb:.1f} | {mlz:.1f} | "
+                                f"{mmb + mlz:.1f} | {sim:.1f} | {out} |")
+                print(loc, combined, {k: round(v, 1) for k, v in sorted(cpu.items())}, out,
+                      flush=True)
     text = "\n".join(rows) + "\n"
     print(text)
     if a.out:

@@ -135,9 +135,14 @@ def test_parallel_runs_do_not_mix(tmp_path):
     assert len(ports) == 2
 
 
+def _ignore_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def test_ctrl_c_keeps_complete_files(tmp_path):
+    # started with SIGINT ignored, as `cmd &` in a script does: the runner must still obey it
     p = start(["--map", "grid", "--robots", "2", "--alg", "CR", "--loc", "fake_localization",
-               "--timeout", "0", "--speedup", "3"], tmp_path)
+               "--timeout", "0", "--speedup", "3"], tmp_path, preexec_fn=_ignore_sigint)
     t0 = time.time()
     seen = ""
     while time.time() - t0 < 150:               # wait for GO and a few visits
@@ -193,3 +198,43 @@ def test_bad_arguments_start_nothing(tmp_path):
                        env=ros_env(), timeout=60)
     if os.geteuid() != 0:                       # root may write anywhere
         assert r.returncode == 2 and "--results-dir" in r.stderr, r.stderr
+
+
+def _processes_mentioning(text):
+    found = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/cmdline", "rb") as f:
+                    if text.encode() in f.read():
+                        found.append(int(d))
+            except OSError:
+                pass
+    return found
+
+
+def test_killed_runner_leaves_no_processes(tmp_path):
+    """SIGKILL gives the runner no chance to clean up: roslaunch still gets SIGTERM from the
+    kernel (parent-death signal) and stops every node."""
+    p = start(["--map", "grid", "--robots", "1", "--alg", "CR", "--loc", "fake_localization",
+               "--timeout", "0", "--speedup", "2"], tmp_path)
+    t0 = time.time()
+    seen = ""
+    while time.time() - t0 < 120:
+        line = p.stdout.readline()
+        seen += line
+        if "progress:" in line and "go yes" in line:
+            break
+    else:
+        os.killpg(p.pid, signal.SIGKILL)
+        pytest.fail("no GO before the deadline:\n" + seen[-2000:])
+    assert len(_processes_mentioning(str(tmp_path))) >= 5     # roslaunch, master, nodes
+    p.kill()
+    p.communicate()
+    t0 = time.time()
+    while time.time() - t0 < 30 and _processes_mentioning(str(tmp_path)):
+        time.sleep(0.5)
+    left = _processes_mentioning(str(tmp_path))
+    for pid in left:                                          # do not leak them into CI
+        os.kill(pid, signal.SIGKILL)
+    assert not left, f"{len(left)} processes outlived the killed runner"

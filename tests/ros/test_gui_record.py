@@ -107,7 +107,11 @@ def test_gui_starts_and_stops_an_experiment(tmp_path, xvfb, monkeypatch):
         assert str(app.start_btn["state"]) == "normal"
     finally:
         if getattr(app, "proc", None) is not None:
-            app.proc.kill()
+            app.proc.terminate()                       # the runner's orderly SIGTERM path
+            try:
+                app.proc.wait(timeout=90)
+            except subprocess.TimeoutExpired:
+                app.proc.kill()
         root.destroy()
     (prefix,) = prefixes(results)
     info, rows = check_files(prefix)

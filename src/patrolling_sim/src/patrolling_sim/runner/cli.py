@@ -94,10 +94,15 @@ def run_one(cfg, out=print):
     def on_term(signum, frame):
         exp.request_stop("terminated by SIGTERM")
     old = signal.signal(signal.SIGTERM, on_term)
+    # Ctrl-C / SIGINT must stop the run even when this process inherited SIGINT ignored
+    # (started in the background by a non-interactive shell, as nohup and `cmd &` in
+    # scripts do): Python then leaves it ignored instead of raising KeyboardInterrupt
+    old_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         outcome = exp.run()
     finally:
         signal.signal(signal.SIGTERM, old)
+        signal.signal(signal.SIGINT, old_int)
     if cfg.record and getattr(exp, "snapshot_dir", None):
         try:
             from .video import assemble_video

@@ -37,6 +37,21 @@ from .launchgen import generate_launch
 from .proctree import ProcessTree
 from .rosenv import experiment_env, free_port
 
+
+def _terminate_with_parent(parent_pid):
+    """preexec_fn for roslaunch: the kernel sends it SIGTERM if this runner dies (even by
+    SIGKILL), and roslaunch then stops its nodes, so a killed runner leaves no orphans."""
+    def setup():
+        try:
+            import ctypes
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)     # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            return
+        if os.getppid() != parent_pid:                       # died before prctl took effect
+            os.kill(os.getpid(), signal.SIGTERM)
+    return setup
+
 RESULT_SUFFIXES = ("idleness.csv", "timeresults.csv", "results.txt", "info.csv")
 #: terminations that count as a successful run (STOPPED: /simulation_running set false,
 #: e.g. by the GUI's Stop button)
@@ -240,7 +255,7 @@ class Experiment:
         proc = subprocess.Popen(["roslaunch", "-p", str(port), "--skip-log-check",
                                  self.launch_path], env=env, stdout=log, stderr=subprocess.STDOUT,
                                 stdin=subprocess.DEVNULL, start_new_session=True,
-                                cwd=self.log_dir)
+                                cwd=self.log_dir, preexec_fn=_terminate_with_parent(os.getpid()))
         tree = ProcessTree(proc.pid)
         watcher = None
         outcome_reason = None
