@@ -16,6 +16,11 @@ import unittest
 import actionlib
 import rospy
 import rostest
+
+# xy_goal_tolerance 0.4 m, plus the motion the robot makes after move_base sees it inside the
+# tolerance: one simulator step (0.1 s) at up to 1 m/s before the stop takes effect, then
+# braking. Ground truth is read once the robot has come to rest.
+REACHED = 0.4 + 0.1
 from actionlib_msgs.msg import GoalStatus
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from geometry_msgs.msg import PoseStamped
@@ -70,6 +75,7 @@ class NavGoals(unittest.TestCase):
             dt = rospy.get_time() - t0
             state = client.get_state()
             text = client.get_goal_status_text()
+            rospy.sleep(0.5)                    # let the robot come to rest
             end = self.truth
             err = math.hypot(end[0] - gx, end[1] - gy)
             line = (f"goal ({gx:.2f},{gy:.2f}) expect {expect}: state {state} '{text}' "
@@ -87,7 +93,7 @@ class NavGoals(unittest.TestCase):
                 if state == GoalStatus.ABORTED:
                     self.assertTrue(len(text) > 5, line + ": no reason")
             if state == GoalStatus.SUCCEEDED:
-                self.assertLess(err, 0.45, line)
+                self.assertLess(err, REACHED, line)
                 if factor > 0 and expect == "S" and math.isfinite(shortest):
                     self.assertLessEqual(dt, factor * shortest / 1.0 + 2.0, line)
         simple = rospy.get_param("~simple_goal", "")
@@ -102,11 +108,11 @@ class NavGoals(unittest.TestCase):
             pub.publish(msg)
             t0 = rospy.get_time()
             while rospy.get_time() - t0 < 120 and not rospy.is_shutdown() and \
-                    math.hypot(self.truth[0] - sx, self.truth[1] - sy) > 0.45:
+                    math.hypot(self.truth[0] - sx, self.truth[1] - sy) > REACHED:
                 rospy.sleep(0.5)
             err = math.hypot(self.truth[0] - sx, self.truth[1] - sy)
             report.append(f"simple goal ({sx}, {sy}): final error {err:.2f} m")
-            self.assertLessEqual(err, 0.45, report[-1])
+            self.assertLessEqual(err, REACHED, report[-1])
         if max_contacts >= 0:
             self.assertLessEqual(self.contacts, max_contacts, "contacts: %d" % self.contacts)
         self.assertGreater(self.plans, 0, "nothing published on move_base/plan")
