@@ -16,6 +16,7 @@ import os
 import platform
 import subprocess
 import sys
+import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 ALGS = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
@@ -49,21 +50,27 @@ def main():
              f"Machine: {platform.node()}, {os.cpu_count()} cores, "
              f"{platform.processor() or platform.machine()}; {datetime.date.today()}.",
              "Command: `bench/graph_sim_bench.py " + " ".join(sys.argv[1:]) + "`", "",
-             "| map | N | alg | setup (s) | run (s) | speed (x real time) | peak RSS (MB) | "
-             "visits | avg idl (s) | max idl (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "setup = graph, map and start positions (incl. importing OpenCV for the map); run = "
+             "the simulation; process = the whole child process (interpreter start, imports, "
+             "setup, run), i.e. what one `scripts/graph_sim.py` call costs.", "",
+             "| map | N | alg | setup (s) | run (s) | process (s) | speed (x real time) | "
+             "peak RSS (MB) | visits | avg idl (s) | max idl (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     print("\n".join(lines), flush=True)
     for m in a.maps:
         for n in a.robots:
             for alg in a.algs:
+                t0 = time.perf_counter()
                 out = subprocess.run([sys.executable, "-c",
                                       CHILD % (src, m, n, alg, a.duration)],
                                      capture_output=True, text=True, timeout=900)
+                proc_wall = time.perf_counter() - t0
                 if out.returncode != 0:
                     row = f"| {m} | {n} | {alg} | failed: {out.stderr.strip().splitlines()[-1]} |"
                 else:
                     r = json.loads(out.stdout)
                     row = (f"| {m} | {n} | {alg} | {r['setup']:.2f} | {r['run']:.2f} | "
+                           f"{proc_wall:.2f} | "
                            f"{a.duration / max(r['run'], 1e-6):,.0f} | {r['rss']:.0f} | "
                            f"{r['visits']} | {r['avg']:.1f} | {r['mx']:.1f} |")
                 lines.append(row)
