@@ -200,19 +200,6 @@ def test_bad_arguments_start_nothing(tmp_path):
         assert r.returncode == 2 and "--results-dir" in r.stderr, r.stderr
 
 
-def _processes_mentioning(text):
-    found = []
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                with open(f"/proc/{d}/cmdline", "rb") as f:
-                    if text.encode() in f.read():
-                        found.append(int(d))
-            except OSError:
-                pass
-    return found
-
-
 def test_killed_runner_leaves_no_processes(tmp_path):
     """SIGKILL gives the runner no chance to clean up: roslaunch still gets SIGTERM from the
     kernel (parent-death signal) and stops every node."""
@@ -228,13 +215,13 @@ def test_killed_runner_leaves_no_processes(tmp_path):
     else:
         os.killpg(p.pid, signal.SIGKILL)
         pytest.fail("no GO before the deadline:\n" + seen[-2000:])
-    assert len(_processes_mentioning(str(tmp_path))) >= 5     # roslaunch, master, nodes
+    assert len(own_processes(str(tmp_path))) >= 5     # roslaunch, master, nodes
     p.kill()
     p.communicate()
     t0 = time.time()
-    while time.time() - t0 < 30 and _processes_mentioning(str(tmp_path)):
+    while time.time() - t0 < 30 and own_processes(str(tmp_path)):
         time.sleep(0.5)
-    left = _processes_mentioning(str(tmp_path))
+    left = own_processes(str(tmp_path))
     for pid in left:                                          # do not leak them into CI
         os.kill(pid, signal.SIGKILL)
     assert not left, f"{len(left)} processes outlived the killed runner"

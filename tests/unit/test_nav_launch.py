@@ -13,13 +13,18 @@ pytestmark = pytest.mark.skipif(shutil.which("roslaunch", path="/usr/bin") is No
                                 reason="roslaunch not installed")
 
 
-def nodes(*args):
+def roslaunch_query(option, *args):
+    """stdout of ``roslaunch OPTION robot.launch ARGS`` (an option that only inspects)."""
     env = dict(os.environ, ROS_PACKAGE_PATH=os.path.join(ROOT, "src"),
                PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
-    proc = subprocess.run(["/usr/bin/roslaunch", "--nodes", LAUNCH, *args], env=env,
+    proc = subprocess.run(["/usr/bin/roslaunch", option, LAUNCH, *args], env=env,
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
-    return sorted(proc.stdout.split())
+    return proc.stdout
+
+
+def nodes(*args):
+    return sorted(roslaunch_query("--nodes", *args).split())
 
 
 def test_amcl_mode():
@@ -38,12 +43,7 @@ def test_fake_localization_mode():
 def params(*args):
     """{name: value} of the parameters roslaunch would set (``roslaunch --dump-params``)."""
     import yaml
-    env = dict(os.environ, ROS_PACKAGE_PATH=os.path.join(ROOT, "src"),
-               PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
-    proc = subprocess.run(["/usr/bin/roslaunch", "--dump-params", LAUNCH, *args], env=env,
-                          capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, proc.stderr
-    return yaml.safe_load(proc.stdout)
+    return yaml.safe_load(roslaunch_query("--dump-params", *args))
 
 
 @pytest.mark.parametrize("combined", ["true", "false"])

@@ -39,13 +39,17 @@ class SyncTest(unittest.TestCase):
         while not state["samples"] and time.time() < t_end:
             time.sleep(0.05)
         self.assertTrue(state["samples"], "no /clock")
-        time.sleep(2.0)                     # connections up, robot being driven
-        with lock:
-            w0, s0 = state["samples"][-1]
-        time.sleep(4.0)
-        with lock:
-            w1, s1 = state["samples"][-1]
-        paced = (s1 - s0) / (w1 - w0)
+        def pace(settle, window):
+            """Simulated seconds per wall second over ``window`` s, after ``settle`` s."""
+            time.sleep(settle)
+            with lock:
+                w0, s0 = state["samples"][-1]
+            time.sleep(window)
+            with lock:
+                w1, s1 = state["samples"][-1]
+            return (s1 - s0) / (w1 - w0)
+
+        paced = pace(2.0, 4.0)              # connections up, robot being driven
         st = json.loads(rospy.wait_for_message("/stage2d/status", String, 10).data)
         # one 0.1 s step per command, each >= 20 ms: at most ~5x real time
         self.assertLess(paced, 6.0, f"did not wait for the controller: {paced:.1f}x, {st}")
@@ -54,13 +58,7 @@ class SyncTest(unittest.TestCase):
         self.assertLess(st["stale_command_fraction"], 0.1, st)
         # the controller stops: after at most one timeout the simulator runs free again
         state["on"] = False
-        time.sleep(1.0)
-        with lock:
-            w0, s0 = state["samples"][-1]
-        time.sleep(2.0)
-        with lock:
-            w1, s1 = state["samples"][-1]
-        free = (s1 - s0) / (w1 - w0)
+        free = pace(1.0, 2.0)
         self.assertGreater(free, 4 * paced, f"still waiting after the controller stopped: "
                                             f"{free:.1f}x vs {paced:.1f}x")
 

@@ -30,6 +30,15 @@ from patrolling_sim.mapio import FREE
 WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
 
 
+def _symmetric_csr(src, dst, weight, n):
+    """n x n CSR matrix holding every edge (src, dst, weight) in both directions."""
+    from scipy.sparse import csr_matrix
+    g = csr_matrix((np.concatenate([weight, weight]),
+                    (np.concatenate([src, dst]), np.concatenate([dst, src]))), shape=(n, n))
+    g.sort_indices()
+    return g
+
+
 class PlanningError(Exception):
     """No plan: the message is the reason (one line)."""
 
@@ -113,14 +122,10 @@ class GlobalPlanner:
         graph is built once, with both directions stored (``dijkstra(directed=False)`` would
         rebuild the symmetric graph on every call, 10x the cost of the search itself);
         obstacles only set the weights of the edges touching their cells to infinity."""
-        from scipy.sparse import csr_matrix
         if self._free_graph is None:
             n = self.h * self.w
             s, d, wt = self._src, self._dst, self._wt
-            self._free_graph = csr_matrix((np.concatenate([wt, wt]),
-                                           (np.concatenate([s, d]), np.concatenate([d, s]))),
-                                          shape=(n, n))
-            self._free_graph.sort_indices()
+            self._free_graph = _symmetric_csr(s, d, wt, n)
             self._rows = np.repeat(np.arange(n, dtype=np.int32),
                                    np.diff(self._free_graph.indptr))
         if self._graph is None:
@@ -302,7 +307,6 @@ class GlobalPlanner:
     def _window_search(self, g, i0, j0, i1, j1):
         """Dijkstra from ``g`` over the cells of [i0, i1) x [j0, j1) without temporary
         obstacles; (dist, pred) indexed by window cell (row-major), pred -9999 at roots."""
-        from scipy.sparse import csr_matrix
         from scipy.sparse.csgraph import dijkstra
         w, ww, wh = self.w, i1 - i0, j1 - j0
         a, b = self._row_start[j0], self._row_start[j1]
@@ -315,8 +319,7 @@ class GlobalPlanner:
         ld = (dj[keep] - j0) * ww + di[keep] - i0
         lw = wt[keep]
         n = ww * wh
-        graph = csr_matrix((np.concatenate([lw, lw]), (np.concatenate([ls, ld]),
-                                                       np.concatenate([ld, ls]))), shape=(n, n))
+        graph = _symmetric_csr(ls, ld, lw, n)
         gl = (g // w - j0) * ww + g % w - i0
         dist, pred = dijkstra(graph, directed=True, indices=gl, return_predecessors=True)
         return dist, pred

@@ -530,24 +530,25 @@ class PatrolAgent:
         self.call_later(INTERFERENCE_PAUSE, resume)
 
 
+def _optional_int_param(name):
+    """Private parameter ``name`` as an int, None if unset; AgentError if not an integer."""
+    value = rospy.get_param(name, None)
+    if value is None:
+        return None
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        raise AgentError(f"{name}: expected an integer, got {value!r}") from None
+
+
 def _read_common_params():
     """(algorithm, team_size, seed, params) from the node's private parameters."""
     if not rospy.has_param("~algorithm"):
         known = ", ".join(sorted(load_registry()))
         raise AgentError(f"~algorithm is required (known: {known})")
     alg = str(rospy.get_param("~algorithm"))
-    team_size = rospy.get_param("~team_size", None)
-    if team_size is not None:
-        try:
-            team_size = int(team_size)
-        except (TypeError, ValueError):
-            raise AgentError(f"~team_size: expected an integer, got {team_size!r}")
-    seed = rospy.get_param("~seed", None)
-    if seed is not None:
-        try:
-            seed = int(seed)
-        except (TypeError, ValueError):
-            raise AgentError(f"~seed: expected an integer, got {seed!r}")
+    team_size = _optional_int_param("~team_size")
+    seed = _optional_int_param("~seed")
     params = rospy.get_param("~params", {})
     if not isinstance(params, dict):
         raise AgentError(f"~params: expected a dictionary, got {params!r}")
