@@ -27,6 +27,7 @@ import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+from procstat import cpu_ticks  # noqa: E402
 
 CLK = os.sysconf("SC_CLK_TCK")
 GO_WAITER = """
@@ -78,15 +79,6 @@ def descendants(root):
         out.append(p)
         todo.extend(kids.get(p, []))
     return out
-
-
-def cpu_ticks(pid):
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            rest = f.read().rsplit(")", 1)[1].split()
-        return int(rest[11]) + int(rest[12])
-    except (OSError, IndexError, ValueError):
-        return None
 
 
 def classify(pid):

@@ -33,6 +33,7 @@ from patrolling_sim.graph import PatrolGraph  # noqa: E402
 from patrolling_sim.mapio import load_map  # noqa: E402
 from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter  # noqa: E402
 from spqrel_nav_lite.planner import GlobalPlanner, path_length  # noqa: E402
+from procstat import cpu_ticks  # noqa: E402
 
 CLK = os.sysconf("SC_CLK_TCK")
 
@@ -171,15 +172,6 @@ def node_of(pid):
     return ns.strip("/") + "/" + name if ns.strip("/") else name
 
 
-def ticks(pid):
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            rest = f.read().rsplit(")", 1)[1].split()
-        return int(rest[11]) + int(rest[12])
-    except (OSError, IndexError):
-        return None
-
-
 def live_run(loc, n, duration, env, combined=False):
     yaml_path, graph_path = map_paths("grid")
     g = PatrolGraph.load(graph_path)
@@ -223,10 +215,10 @@ def live_run(loc, n, duration, env, combined=False):
             if name:
                 pids[pid] = name
         t_start = time.monotonic()
-        first = {pid: ticks(pid) for pid in pids}
+        first = {pid: cpu_ticks(pid) for pid in pids}
         time.sleep(duration)
         wall = time.monotonic() - t_start
-        last = {pid: ticks(pid) for pid in pids}
+        last = {pid: cpu_ticks(pid) for pid in pids}
         cpu = {}
         for pid, name in pids.items():
             if first[pid] is not None and last[pid] is not None:

@@ -33,31 +33,12 @@ import time
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 from patrolling_sim.runner.proctree import ProcessTree  # noqa: E402
+from procstat import cpu_ticks, pss_kb  # noqa: E402
 
 CLK = os.sysconf("SC_CLK_TCK")
 PROGRESS = re.compile(r"progress: sim ([\d.]+) s \| go (\w+)")
 SIM_LOG = re.compile(r"\[ INFO\] \[([\d.]+), ([\d.]+)\]: stage2d: sim time .*contacts wall "
                      r"(\d+) robot (\d+)(?:, stale commands ([\d.]+)%)?")
-
-
-def cpu_ticks(pid):
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            rest = f.read().rsplit(")", 1)[1].split()
-        return int(rest[11]) + int(rest[12])
-    except (OSError, IndexError, ValueError):
-        return 0
-
-
-def pss_kb(pid):
-    try:
-        with open(f"/proc/{pid}/smaps_rollup") as f:
-            for line in f:
-                if line.startswith("Pss:"):
-                    return int(line.split()[1])
-    except OSError:
-        pass
-    return 0
 
 
 def sim_log(results_dir, robots, alg):
@@ -110,6 +91,8 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes):
         pids = tree.alive()
         for x in pids:
             t = cpu_ticks(x)
+            if t is None:                   # exited since the listing
+                continue
             cum += max(0, t - seen.get(x, 0))
             seen[x] = t
         samples.append((time.monotonic() - t0, cum, sum(pss_kb(x) for x in pids)))
