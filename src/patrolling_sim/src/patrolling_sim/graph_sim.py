@@ -196,8 +196,9 @@ class GraphSimulator:
     def _complete(self, robot, v):
         s = robot.strategy
         s.on_arrival(v, self.t)
-        self._report(robot.id, v)
         nxt = s.next_vertex(self.t)
+        self._report(robot.id, v)
+        s.send_results(self.t)
         self._travel(robot, v, nxt, self.t)
 
     # -- monitor ----------------------------------------------------------------------------
@@ -223,8 +224,9 @@ class GraphSimulator:
         robot.strategy = create(self.cfg.alg, ctx)
         robot.vertex = sv
         robot.strategy.start(sv, self.t)
-        self._report(robot.id, sv)
         nxt = robot.strategy.next_vertex(self.t)
+        self._report(robot.id, sv)
+        robot.strategy.send_results(self.t)
         self._travel(robot, sv, nxt, self.t)
 
     def _timeresults(self):

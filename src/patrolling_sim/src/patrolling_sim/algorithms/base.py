@@ -12,9 +12,11 @@ Life cycle, as driven by both drivers::
     s.start(start_vertex, now)             # once, at GO; the robot stands on start_vertex
     v = s.next_vertex(now)                 # where to go first
     ...robot travels, arrives at v...
-    s.on_arrival(v, now)                   # tables updated; messages may be sent
-    v = s.next_vertex(now)
-    ...
+    s.on_arrival(v, now)                   # tables updated (no messages here)
+    v = s.next_vertex(now)                 # decide
+    ...driver reports the visit [id,11,v] on /results...
+    s.send_results(now)                    # share: the algorithm's own message, if any
+    ...driver sends the goal v...
     s.on_message(data, now)                # any time: a /results message from a teammate
     s.on_goal_failed(v, now) -> vertex     # navigation gave up on v: choose another
 
@@ -128,6 +130,12 @@ class PatrolStrategy:
         self.current = vertex
         self.last_visit[vertex] = now
         self.update_idleness(now)
+
+    def send_results(self, now: float) -> None:
+        """Called after every visit report ``[id,11,v]`` (also the first one, for the start
+        vertex), before the next goal is sent: the place where an algorithm broadcasts what
+        it shares with its teammates (the original's order: update, decide, report, share,
+        go). Default: nothing."""
 
     def on_message(self, data: List[int], now: float) -> None:
         """A /results message from another robot (own messages are filtered out by the

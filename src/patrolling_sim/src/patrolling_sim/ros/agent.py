@@ -371,8 +371,10 @@ class PatrolAgent:
         pending, self.pending_msgs = self.pending_msgs, []
         for data in pending:
             self.strategy.on_message(data, now)
+        nxt = self.strategy.next_vertex(now)
         self.publish([self.id, MSG_TARGET_REACHED, self.start_vertex])
-        self._go_next(self.strategy.next_vertex(now))
+        self.strategy.send_results(now)
+        self._go_next(nxt)
 
     def _go_next(self, v):
         if v is None:
@@ -454,6 +456,7 @@ class PatrolAgent:
             return
         nxt = self.strategy.next_vertex(now)
         self.publish([self.id, MSG_TARGET_REACHED, v])
+        self.strategy.send_results(now)
         if token != self.token:
             return
         self._go_next(nxt)
