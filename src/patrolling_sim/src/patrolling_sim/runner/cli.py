@@ -43,7 +43,7 @@ def build_parser():
     ap.add_argument("--initpos", help="'default' or a variant letter of initial_poses.txt")
     ap.add_argument("--alg", help="algorithm short name")
     ap.add_argument("--loc", help="AMCL | fake_localization")
-    ap.add_argument("--nav", help="spqrel_nav_lite | ros")
+    ap.add_argument("--nav", help="spqrel_nav_lite | ros | abstract (straight-line world)")
     ap.add_argument("--gwait", type=float, help="goal_reached_wait (s)")
     ap.add_argument("--comm-delay", dest="comm_delay", type=float, help="communication delay (s)")
     ap.add_argument("--loss", type=float, help="lost message rate [0, 1)")

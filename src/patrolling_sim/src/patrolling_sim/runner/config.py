@@ -10,7 +10,10 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
                  DTAG, DTAP, or any registered strategy)             required
     initpos      "default" or a lettered variant of params/initial_poses.txt ("a", "b", ...)
     loc          AMCL | fake_localization                            (AMCL)
-    nav          spqrel_nav_lite | ros                               (spqrel_nav_lite)
+    nav          spqrel_nav_lite | ros | abstract                    (spqrel_nav_lite)
+                 abstract: no simulator and no navigation; one node moves the robots in
+                 straight lines at 1 m/s (the world of the original's reference runs,
+                 docs/abstract_world.md); loc is ignored, no gui_sim / record
     gwait        goal_reached_wait, s >= 0                           (0)
     comm_delay   communication_delay, s >= 0                         (0)
     loss         lost_message_rate in [0, 1)                         (0)
@@ -43,7 +46,7 @@ from .. import paths
 from ..errors import PatrolInputError
 
 LOC_MODES = ("AMCL", "fake_localization")
-NAV_MODES = ("spqrel_nav_lite", "ros")
+NAV_MODES = ("spqrel_nav_lite", "ros", "abstract")
 NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lite"}
 PROCESS_MODES = ("shared", "separate")
 
@@ -131,6 +134,9 @@ class ExperimentConfig:
         if self.nav not in NAV_MODES:
             raise PatrolInputError(f"argument --nav: must be one of {', '.join(NAV_MODES)}, "
                                    f"got '{self.nav}'")
+        if self.nav == "abstract" and (self.gui_sim or self.record):
+            raise PatrolInputError("argument --nav: the abstract world has no simulator window "
+                                   "(drop --gui-sim and --record)")
         if self.processes not in PROCESS_MODES:
             raise PatrolInputError(f"argument --processes: must be one of "
                                    f"{', '.join(PROCESS_MODES)}, got '{self.processes}'")

@@ -13,12 +13,36 @@ plain ``roslaunch``. The file composes:
 - the monitor and the N agents (``processes: shared``: one ``patrol_agents`` process hosting
   all of them; ``separate``: one ``patrol_agent`` node per robot, as the original),
 - optionally rviz with ``launch/patrol.rviz``.
+
+With ``nav: abstract`` the simulator, map server and per-robot navigation are replaced by
+one ``abstract_world`` node (straight-line motion, see :func:`_abstract_world`).
 """
 import math
 import os
 from xml.sax.saxutils import quoteattr
 
 from .. import paths
+
+
+#: ``nav`` value of the abstract world: no simulator, map server, localisation or move_base;
+#: one ``abstract_world`` node (src/patrolling_sim/tools/abstract_world.py) moves every robot
+#: in straight lines at 1 m/s and publishes /clock (docs/abstract_world.md)
+ABSTRACT_NAV = "abstract"
+
+
+def status_topic(cfg):
+    """The topic with the run's sim time and pace (JSON with ``sim_time`` and ``rtf``)."""
+    return "/abstract_world/status" if cfg.nav == ABSTRACT_NAV else "/stage2d/status"
+
+
+def _abstract_world(a, cfg, n):
+    a("  <!-- abstract world: /clock and every robot's move_base (straight lines, 1 m/s) -->")
+    a('  <node pkg="patrolling_sim" type="abstract_world.py" name="abstract_world" '
+      'required="true" output="log">')
+    a(f'    <param name="team_size" value="{n}"/>')
+    a(f'    <param name="speedup" value="{_num(cfg.speedup)}"/>')
+    a("  </node>")
+    a("")
 
 
 def _attr(v):
@@ -61,35 +85,38 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'  <param name="/initial_positions" value={_attr(cfg.initpos)}/>')
     a(f'  <rosparam param="/initial_pos">[{flat}]</rosparam>')
     a("")
-    a("  <!-- simulator: all robots, laser, odometry, ground truth, tf, /clock -->")
-    a('  <include file="$(find patrol_stage2d)/launch/stage2d.launch">')
-    a(f"    <arg name=\"map\" value={_attr(yaml_path)}/>")
-    a(f"    <arg name=\"poses\" value={_attr(poses)}/>")
-    a(f"    <arg name=\"speedup\" value=\"{_num(cfg.speedup)}\"/>")
-    a(f"    <arg name=\"gui\" value=\"{str(cfg.gui_sim).lower()}\"/>")
-    a(f"    <arg name=\"graph_file\" value={_attr(graph_path)}/>")
-    a(f"    <arg name=\"seed\" value=\"{int(cfg.seed)}\"/>")
-    if snapshot_dir:
-        a(f"    <arg name=\"snapshot_dir\" value={_attr(snapshot_dir)}/>")
-        a(f"    <arg name=\"snapshot_period\" value=\"{_num(cfg.record_period)}\"/>")
-    a("  </include>")
-    a("")
-    a('  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" '
-      f'args={_attr(yaml_path)} output="log"/>')
-    a("")
-    for i, (x, y) in enumerate(positions):
-        a(f'  <include file={_attr(os.path.join(root, "launch", "robot.launch"))}>')
-        a(f'    <arg name="robotname" value="robot_{i}"/>')
-        a(f'    <arg name="mapname" value={_attr(cfg.map_name)}/>')
-        a(f'    <arg name="map_yaml" value={_attr(yaml_path)}/>')
-        a(f'    <arg name="x" value="{x:.4f}"/>')
-        a(f'    <arg name="y" value="{y:.4f}"/>')
-        a(f'    <arg name="yaw" value="{yaw:.4f}"/>')
-        a(f'    <arg name="localization" value={_attr(cfg.loc)}/>')
-        a(f'    <arg name="navigation" value={_attr(cfg.nav)}/>')
-        a(f'    <arg name="combined" value="{str(cfg.processes == "shared").lower()}"/>')
+    if cfg.nav == ABSTRACT_NAV:
+        _abstract_world(a, cfg, n)
+    else:
+        a("  <!-- simulator: all robots, laser, odometry, ground truth, tf, /clock -->")
+        a('  <include file="$(find patrol_stage2d)/launch/stage2d.launch">')
+        a(f"    <arg name=\"map\" value={_attr(yaml_path)}/>")
+        a(f"    <arg name=\"poses\" value={_attr(poses)}/>")
+        a(f"    <arg name=\"speedup\" value=\"{_num(cfg.speedup)}\"/>")
+        a(f"    <arg name=\"gui\" value=\"{str(cfg.gui_sim).lower()}\"/>")
+        a(f"    <arg name=\"graph_file\" value={_attr(graph_path)}/>")
+        a(f"    <arg name=\"seed\" value=\"{int(cfg.seed)}\"/>")
+        if snapshot_dir:
+            a(f"    <arg name=\"snapshot_dir\" value={_attr(snapshot_dir)}/>")
+            a(f"    <arg name=\"snapshot_period\" value=\"{_num(cfg.record_period)}\"/>")
         a("  </include>")
-    a("")
+        a("")
+        a('  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" '
+          f'args={_attr(yaml_path)} output="log"/>')
+        a("")
+        for i, (x, y) in enumerate(positions):
+            a(f'  <include file={_attr(os.path.join(root, "launch", "robot.launch"))}>')
+            a(f'    <arg name="robotname" value="robot_{i}"/>')
+            a(f'    <arg name="mapname" value={_attr(cfg.map_name)}/>')
+            a(f'    <arg name="map_yaml" value={_attr(yaml_path)}/>')
+            a(f'    <arg name="x" value="{x:.4f}"/>')
+            a(f'    <arg name="y" value="{y:.4f}"/>')
+            a(f'    <arg name="yaw" value="{yaw:.4f}"/>')
+            a(f'    <arg name="localization" value={_attr(cfg.loc)}/>')
+            a(f'    <arg name="navigation" value={_attr(cfg.nav)}/>')
+            a(f'    <arg name="combined" value="{str(cfg.processes == "shared").lower()}"/>')
+            a("  </include>")
+        a("")
     a("  <!-- monitor: ends the run (timeout / cycles / dead robot / abort); required, so")
     a("       roslaunch shuts everything down when it exits after writing its files -->")
     a('  <node pkg="patrolling_sim" type="monitor" name="monitor" required="true" output="log"')

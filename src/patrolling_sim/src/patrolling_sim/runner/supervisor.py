@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 from .. import paths
 from ..errors import PatrolInputError
-from .launchgen import generate_launch
+from .launchgen import generate_launch, status_topic
 from .proctree import ProcessTree
 from .rosenv import experiment_env, free_port
 
@@ -137,7 +137,7 @@ class _RosWatcher:
     achieved real-time factor, every 2 s wall; cheaper than /clock at every step) and
     /results (GO, visits)."""
 
-    def __init__(self, master_uri):
+    def __init__(self, master_uri, status="/stage2d/status"):
         os.environ["ROS_MASTER_URI"] = master_uri
         os.environ["ROS_IP"] = "127.0.0.1"
         import rospy
@@ -150,7 +150,7 @@ class _RosWatcher:
         self.ready = set()
         rospy.init_node(f"experiment_runner_{os.getpid()}", anonymous=False,
                         disable_signals=True, disable_rosout=False)
-        rospy.Subscriber("/stage2d/status", String, self._status, queue_size=1)
+        rospy.Subscriber(status, String, self._status, queue_size=1)
         rospy.Subscriber("/results", Int16MultiArray, self._results, queue_size=100)
 
     def _status(self, msg):
@@ -265,7 +265,7 @@ class Experiment:
             if not _master_up(uri, 30):
                 outcome_reason = "the ROS master did not come up within 30 s"
             else:
-                watcher = _RosWatcher(uri)
+                watcher = _RosWatcher(uri, status_topic(cfg))
             last_print = 0.0
             last_clock = (0.0, time.monotonic())
             limit = self.wall_limit()

@@ -1,0 +1,358 @@
+#!/usr/bin/python3
+"""The abstract world: one node standing in for the simulator and every robot's move_base,
+with straight-line motion and nothing else (docs/abstract_world.md).
+
+It is the world the original's reference runs were made in, so that our agents and monitor
+can be compared with the original's on equal terms, and a cheap world for ROS-level tests:
+
+- ``/clock`` in fixed steps of ``~step`` sim seconds (0.02), paced at ``~speedup`` x real
+  time after the monitor's GO and ``~speedup_before_go`` x before it; when the machine
+  cannot keep up, sim time slows down uniformly (steps are never skipped or merged), so
+  sim-time results do not depend on the machine's load;
+- per robot ``robot_i/move_base`` (move_base_msgs/MoveBase action): on a goal the robot
+  moves in a straight line from its CURRENT position to the goal at ``~speed`` m/s, no
+  acceleration, no turning, no obstacles, robots pass through each other; the goal
+  SUCCEEDS at the first step at or after arrival; a cancel stops the robot where it is and
+  PREEMPTS the goal; a new goal preempts the previous one;
+- per robot ``robot_i/move_base/clear_costmaps`` (std_srvs/Empty, does nothing);
+- per robot ``robot_i/odom`` (nav_msgs/Odometry, frame ``robot_i/odom``, child
+  ``robot_i/base_link``) every ``~odom_period`` sim s, and with ``~publish_tf`` the same
+  transforms on /tf plus identity ``map -> robot_i/odom`` on /tf_static;
+- with ``~feedback`` true, move_base feedback (``base_position`` in ``map``) with each
+  odometry message; the reference world sent none, so the agents never published
+  /positions and never detected interference;
+- ``~status`` (std_msgs/String, JSON) about twice a wall second: sim time, achieved pace
+  (``rtf``), GO seen, goals / successes / preemptions per robot.
+
+Start positions come from ``/initial_pos`` (flat x0,y0,x1,y1,...), the team size from
+``~team_size`` (default: all of ``/initial_pos``). At shutdown the node logs a summary: goals
+per robot and the sim time between a SUCCEEDED and the robot's next goal (the agents'
+turnaround, which costs patrol time in this world as in the reference runs).
+
+Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20),
+~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
+~publish_tf (true).
+"""
+import json
+import math
+import statistics
+import sys
+import threading
+import time
+
+EPS = 1e-9
+STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5 Hz)
+
+
+class StraightLineWorld:
+    """The motion model, free of ROS: points moving in straight lines at one speed, time in
+    whole steps (so ``time`` is exact and the same on every machine)."""
+
+    def __init__(self, positions, speed, step):
+        if not speed > 0:
+            raise ValueError(f"~speed must be > 0, got {speed}")
+        if not step > 0:
+            raise ValueError(f"~step must be > 0, got {step}")
+        self.speed = float(speed)
+        self.step_length = float(step)
+        self.pos = [[float(x), float(y)] for x, y in positions]
+        self.yaw = [math.pi / 2] * len(self.pos)
+        self.goal = [None] * len(self.pos)
+        self.steps = 0
+
+    @property
+    def time(self):
+        return self.steps * self.step_length
+
+    def set_goal(self, i, x, y):
+        """Robot ``i`` heads for (x, y) from where it is now, from the next step on."""
+        self.goal[i] = (float(x), float(y))
+
+    def stop(self, i):
+        """Robot ``i`` stays where it is."""
+        self.goal[i] = None
+
+    def moving(self, i):
+        return self.goal[i] is not None
+
+    def advance(self):
+        """One step of motion; returns the robots that reached their goal in this step
+        (they stop there)."""
+        self.steps += 1
+        reach = self.speed * self.step_length
+        arrived = []
+        for i, g in enumerate(self.goal):
+            if g is None:
+                continue
+            p = self.pos[i]
+            dx, dy = g[0] - p[0], g[1] - p[1]
+            d = math.hypot(dx, dy)
+            if d > EPS:
+                self.yaw[i] = math.atan2(dy, dx)
+            if d <= reach + EPS:
+                p[0], p[1] = g
+                self.goal[i] = None
+                arrived.append(i)
+            else:
+                p[0] += dx / d * reach
+                p[1] += dy / d * reach
+        return arrived
+
+
+def read_positions(flat, team_size):
+    """[(x, y)] of the first ``team_size`` robots of ``/initial_pos`` (ValueError, one line)."""
+    if flat is None:
+        raise ValueError("/initial_pos is not set")
+    try:
+        flat = [float(v) for v in flat]
+    except (TypeError, ValueError):
+        raise ValueError(f"/initial_pos must be a flat list of numbers, got {flat!r}") from None
+    n = len(flat) // 2 if team_size is None else int(team_size)
+    if n < 1 or len(flat) < 2 * n:
+        raise ValueError(f"~team_size {n} does not fit /initial_pos ({len(flat) // 2} "
+                         "positions)")
+    return [(flat[2 * i], flat[2 * i + 1]) for i in range(n)]
+
+
+class RobotServer:
+    """ROS interface of one robot: action server, clear_costmaps, odometry."""
+
+    def __init__(self, node, i):
+        import actionlib
+        import rospy
+        from move_base_msgs.msg import MoveBaseAction
+        from nav_msgs.msg import Odometry
+        from std_srvs.srv import Empty, EmptyResponse
+        self.node, self.i = node, i
+        self.gh = None                  # the goal being executed (owned under node.lock)
+        self.goals = self.succeeded = self.preempted = 0
+        self.done_at = None             # sim time of the last SUCCEEDED
+        self.turnaround = []            # sim s from a SUCCEEDED to the next goal
+        ns = f"robot_{i}"
+        self.odom_pub = rospy.Publisher(f"{ns}/odom", Odometry, queue_size=1)
+        self.odom = Odometry()
+        self.odom.header.frame_id = f"{ns}/odom"
+        self.odom.child_frame_id = f"{ns}/base_link"
+        self.server = actionlib.ActionServer(f"{ns}/move_base", MoveBaseAction, self.on_goal,
+                                             self.on_cancel, auto_start=False)
+        self.srv = rospy.Service(f"{ns}/move_base/clear_costmaps", Empty,
+                                 lambda _req: EmptyResponse())
+
+    def on_goal(self, gh):
+        # called with the action server's lock held; takes node.lock after it (the stepping
+        # thread never holds node.lock while calling into a goal handle)
+        p = gh.get_goal().target_pose.pose.position
+        with self.node.lock:
+            old, self.gh = self.gh, gh
+            gh.set_accepted()
+            self.node.world.set_goal(self.i, p.x, p.y)
+            self.goals += 1
+            if self.done_at is not None:
+                self.turnaround.append(self.node.world.time - self.done_at)
+                self.done_at = None
+            if old is not None:
+                self.preempted += 1
+        if old is not None:
+            old.set_canceled(text="preempted by a new goal")
+
+    def on_cancel(self, gh):
+        with self.node.lock:
+            if self.gh is None or gh != self.gh:
+                return
+            self.gh = None
+            self.node.world.stop(self.i)
+            self.preempted += 1
+        gh.set_canceled(text="cancelled: robot stopped")
+
+    def fill_odom(self, stamp, world):
+        o = self.odom
+        o.header.stamp = stamp
+        x, y = world.pos[self.i]
+        yaw = world.yaw[self.i]
+        o.pose.pose.position.x, o.pose.pose.position.y = x, y
+        o.pose.pose.orientation.z = math.sin(yaw / 2)
+        o.pose.pose.orientation.w = math.cos(yaw / 2)
+        o.twist.twist.linear.x = world.speed if world.moving(self.i) else 0.0
+        return o
+
+
+class WorldNode:
+    def __init__(self):
+        import rospy
+        from rosgraph_msgs.msg import Clock
+        from std_msgs.msg import Int16MultiArray, String
+        self.rospy = rospy
+        positions = read_positions(rospy.get_param("/initial_pos", None),
+                                   rospy.get_param("~team_size", None))
+        self.world = StraightLineWorld(positions, float(rospy.get_param("~speed", 1.0)),
+                                       float(rospy.get_param("~step", 0.02)))
+        self.speedup = float(rospy.get_param("~speedup", 20.0))
+        if not self.speedup > 0:
+            raise ValueError(f"~speedup must be > 0, got {self.speedup}")
+        self.speedup_before_go = min(float(rospy.get_param("~speedup_before_go", 2.0)),
+                                     self.speedup)
+        if not self.speedup_before_go > 0:
+            raise ValueError(f"~speedup_before_go must be > 0, got {self.speedup_before_go}")
+        odom_period = float(rospy.get_param("~odom_period", 0.1))
+        if not odom_period > 0:
+            raise ValueError(f"~odom_period must be > 0, got {odom_period}")
+        self.odom_every = max(1, round(odom_period / self.world.step_length))
+        self.feedback = bool(rospy.get_param("~feedback", False))
+        self.publish_tf = bool(rospy.get_param("~publish_tf", True))
+        self.lock = threading.Lock()
+        self.go_at = None
+        self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=1)
+        self.clock = Clock()
+        self.status_pub = rospy.Publisher("~status", String, queue_size=1)
+        self.robots = [RobotServer(self, i) for i in range(len(positions))]
+        if self.publish_tf:
+            from tf2_msgs.msg import TFMessage
+            self.tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=1)
+            self.tf_msg = TFMessage()
+            self._static_tf(TFMessage)
+        self.results_sub = rospy.Subscriber("/results", Int16MultiArray, self._on_results,
+                                            queue_size=10)
+        for r in self.robots:
+            r.server.start()
+            # the action server's own 5 Hz status timer is a thread woken by every clock
+            # step; the stepping loop publishes the status at the same sim-time rate instead
+            timer = getattr(r.server, "status_timer", None)
+            if timer is not None:
+                timer.shutdown()
+        self.status_every = max(1, round(STATUS_PERIOD / self.world.step_length))
+        rospy.loginfo("abstract_world: %d robots, %.2f m/s, step %.3f s, x%g (x%g before GO), "
+                      "feedback %s", len(self.robots), self.world.speed,
+                      self.world.step_length, self.speedup, self.speedup_before_go,
+                      self.feedback)
+
+    def _static_tf(self, TFMessage):
+        from geometry_msgs.msg import TransformStamped
+        static = TFMessage()
+        for r in self.robots:
+            t = TransformStamped()
+            t.header.frame_id = "map"
+            t.child_frame_id = f"robot_{r.i}/odom"
+            t.transform.rotation.w = 1.0
+            static.transforms.append(t)
+            d = TransformStamped()
+            d.header.frame_id = r.odom.header.frame_id
+            d.child_frame_id = r.odom.child_frame_id
+            self.tf_msg.transforms.append(d)
+        self.static_pub = self.rospy.Publisher("/tf_static", TFMessage, queue_size=1,
+                                               latch=True)
+        self.static_pub.publish(static)
+
+    def _on_results(self, msg):
+        d = msg.data
+        if len(d) >= 3 and d[0] == -1 and d[1] == 10 and d[2] == 100 and self.go_at is None:
+            self.go_at = self.world.time
+            self.rospy.loginfo("abstract_world: GO at sim %.2f s", self.go_at)
+
+    def run(self):
+        rospy = self.rospy
+        # this node owns the clock: it sets its own ROS time directly instead of reading
+        # back every /clock message it publishes (rospy subscribed to /clock at init_node)
+        from rospy.impl import simtime
+        own_sub = getattr(simtime, "_clock_sub", None)
+        if own_sub is not None:
+            own_sub.unregister()
+        step = self.world.step_length
+        next_wall = time.monotonic()
+        window = (time.monotonic(), 0.0)
+        last_status = 0.0
+        rtf = 0.0
+        while not rospy.is_shutdown():
+            with self.lock:
+                arrived = self.world.advance()
+                t = rospy.Time.from_sec(self.world.time)
+                handles = []
+                for i in arrived:
+                    r = self.robots[i]
+                    handles.append(r.gh)
+                    r.gh = None
+                    r.succeeded += 1
+                    r.done_at = self.world.time
+            rospy.rostime._set_rostime(t)
+            self.clock.clock = t
+            self.clock_pub.publish(self.clock)
+            for gh in handles:
+                if gh is not None:
+                    gh.set_succeeded()
+            if self.world.steps % self.odom_every == 0:
+                self._publish_odometry(t)
+            if self.world.steps % self.status_every == 0:
+                for r in self.robots:
+                    r.server.publish_status()
+            if self.go_at is not None and self.results_sub is not None:
+                self.results_sub.unregister()     # GO seen: no need to read every visit
+                self.results_sub = None
+            pace = self.speedup if self.go_at is not None else self.speedup_before_go
+            next_wall += step / pace
+            now = time.monotonic()
+            if next_wall > now:
+                time.sleep(next_wall - now)
+            elif now - next_wall > 0.1:
+                next_wall = now        # lagging: slow down, never catch up in a burst
+            if now - last_status >= 0.5:
+                w0, s0 = window
+                if now > w0:
+                    rtf = (self.world.time - s0) / (now - w0)
+                window = (now, self.world.time)
+                last_status = now
+                self.status_pub.publish(json.dumps(self.status(rtf)))
+        self.log_summary()
+
+    def _publish_odometry(self, stamp):
+        from move_base_msgs.msg import MoveBaseFeedback
+        with self.lock:
+            msgs = [(r, r.fill_odom(stamp, self.world), r.gh) for r in self.robots]
+        for r, odom, gh in msgs:
+            r.odom_pub.publish(odom)
+            if self.feedback and gh is not None:
+                fb = MoveBaseFeedback()
+                fb.base_position.header.frame_id = "map"
+                fb.base_position.header.stamp = stamp
+                fb.base_position.pose = odom.pose.pose
+                gh.publish_feedback(fb)
+        if self.publish_tf:
+            for (r, odom, _), tr in zip(msgs, self.tf_msg.transforms):
+                tr.header.stamp = stamp
+                tr.transform.translation.x = odom.pose.pose.position.x
+                tr.transform.translation.y = odom.pose.pose.position.y
+                tr.transform.rotation = odom.pose.pose.orientation
+            self.tf_pub.publish(self.tf_msg)
+
+    def status(self, rtf):
+        return dict(sim_time=round(self.world.time, 3), rtf=round(rtf, 3),
+                    go=self.go_at is not None, go_at=self.go_at,
+                    goals=[r.goals for r in self.robots],
+                    succeeded=[r.succeeded for r in self.robots],
+                    preempted=[r.preempted for r in self.robots])
+
+    def log_summary(self):
+        turn = [x for r in self.robots for x in r.turnaround]
+        s = self.status(0.0)
+        line = (f"abstract_world: end at sim {s['sim_time']:.2f} s, GO at {s['go_at']}; goals "
+                f"{s['goals']} succeeded {s['succeeded']} preempted {s['preempted']}")
+        if turn:
+            line += (f"; turnaround SUCCEEDED->next goal (sim s): n {len(turn)} mean "
+                     f"{statistics.mean(turn):.3f} median {statistics.median(turn):.3f} "
+                     f"max {max(turn):.3f}")
+        sys.stdout.write(line + "\n")
+        sys.stdout.flush()
+
+
+def main():
+    import rospy
+    rospy.init_node("abstract_world")
+    try:
+        node = WorldNode()
+    except (ValueError, KeyError) as e:
+        sys.stderr.write(f"abstract_world: error: {e}\n")
+        return 2
+    node.run()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
