@@ -13,7 +13,10 @@ from patrolling_sim.algorithms.msp import msp_route
 from patrolling_sim.graph import PatrolGraph
 from patrolling_sim.routes import balanced_partition, closed_route, route_cost
 
-ALL = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
+#: the original's eleven short names (each must stay registered)
+ORIGINAL = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
+#: every registered algorithm, the originals and this project's improvements
+ALL = names()
 _G = {}
 
 
@@ -57,6 +60,7 @@ def walk(s, d, start, steps, speed=1.0):
     s.start(start, d.t)
     goals = []
     v = s.next_vertex(d.t)
+    s.send_results(d.t)
     cur = start
     for _ in range(steps):
         assert 0 <= v < g.n
@@ -69,11 +73,13 @@ def walk(s, d, start, steps, speed=1.0):
         goals.append(v)
         cur = v
         v = s.next_vertex(d.t)
+        s.send_results(d.t)
     return goals
 
 
 def test_registry_has_the_eleven():
-    assert names() == sorted(ALL) == sorted(REGISTRY)
+    assert set(ORIGINAL) <= set(names()) and names() == sorted(REGISTRY)
+    assert "CGG_TSP" in names()                 # our improvement, under its own name
     with pytest.raises(KeyError, match="unknown algorithm 'FOO'.*CGG"):
         create("FOO", None)
 
@@ -152,6 +158,8 @@ def test_gbs_shares_idleness():
     s, d = make("GBS", n=2)
     s.start(0, 0.0)
     s.next_vertex(0.0)
+    assert not d.sent                           # nothing is sent while deciding
+    s.send_results(0.0)
     assert d.sent[-1] == [0, 31, 0]
     s.on_message([1, 31, 7], 20.0)
     assert s.last_visit[7] == 20.0 and s.idleness[7] == 0.0
@@ -171,6 +179,7 @@ def test_sebs_avoids_teammates_intentions():
     assert s.intention == {1: 11, 2: 7}
     assert s.choose_next(30.0) in (1, 5)
     v = s.next_vertex(30.0)
+    s.send_results(30.0)
     assert d.sent[-1] == [0, 32, 6, v]
     assert s.algorithm_params == "0.1,100"
 
@@ -246,9 +255,11 @@ def test_dtag_message_and_conflict():
     s, d = make("DTAG", rid=1, n=2)
     s.start(0, 0.0)
     v = s.next_vertex(10.0)
+    s.send_results(10.0)
     msg = d.sent[-1]
     assert msg[:2] == [1, 40] and len(msg) == g.n + 3 and msg[-1] == v
-    assert msg[2 + v] == 0 and msg[2 + 0] == 100 and msg[2 + 24] == 1100   # 10 s after start
+    # own goal sent as 0, the current vertex zeroed at the decision, the rest 100 s + 10 s
+    assert msg[2 + v] == 0 and msg[2 + 0] == 0 and msg[2 + 24] == 1100
     assert s.algorithm_params == "1,-0.75,-5"
     other = [0, 40] + [0] * g.n + [v]
     s.on_message(other, 11.0)                   # robot 0 heads to my goal: I yield
@@ -278,6 +289,7 @@ def test_dtap_auction_between_two_robots():
     t = 0.0
     for b in bots:
         b.next_vertex(t)
+        b.send_results(t)
     for step in range(200):
         t += 0.5
         while bus:
@@ -295,6 +307,7 @@ def test_dtap_auction_between_two_robots():
             for b in bots:
                 b.on_arrival(b.next, t)
                 b.next_vertex(t)
+                b.send_results(t)
     kinds = {m[1] for d in drivers for m in d.sent}
     assert {40, 41}.issubset(kinds)
     assert bots[0].algorithm_params == "3,1,0,-2,0,0"

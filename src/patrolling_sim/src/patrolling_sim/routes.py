@@ -10,13 +10,92 @@
   equal size by recursive bisection (a region grows from a peripheral vertex in shortest-path
   order, so it is connected; the split is kept only if the rest is connected too).
 
-Both are deterministic: every robot computes the same result from the same graph.
+- :func:`hamiltonian_route` is the original CGG's route where its first construction step
+  succeeds: a randomised greedy walk from each vertex in turn (``rand()`` reseeded with 1000
+  before each walk, emulated by :class:`CRand`) that either visits every vertex (a
+  Hamiltonian path; a circuit if its ends are adjacent) or gets stuck. A circuit is used as
+  it is; a path is closed by walking it back. On grid this gives the original's 49-step
+  route. It returns None where the original would fall back to its longest-cycle search
+  (every other shipped map).
+
+All are deterministic: every robot computes the same result from the same graph.
 """
 import random
 from functools import lru_cache
 from typing import List, Optional, Sequence
 
 import numpy as np
+
+
+class CRand:
+    """The C library's ``srand(seed)`` / ``rand()`` as glibc implements them (additive
+    feedback generator, 31-word state, the first 310 outputs discarded), so that a
+    construction the original seeds with a fixed value gives the same choices here.
+    Checked against glibc: seed 1 gives 1804289383, 846930886, 1681692777."""
+
+    MOD = 2147483647
+
+    def __init__(self, seed: int):
+        r = [0] * 34
+        r[0] = seed & 0xFFFFFFFF or 1
+        for i in range(1, 31):
+            prev = r[i - 1] - (1 << 32) if r[i - 1] >= 1 << 31 else r[i - 1]
+            hi, lo = divmod(prev, 127773)
+            word = 16807 * lo - 2836 * hi
+            r[i] = word + self.MOD if word < 0 else word
+        for i in range(31, 34):
+            r[i] = r[i - 31]
+        self._r = r
+        for _ in range(310):
+            self.rand()
+
+    def rand(self) -> int:
+        r = self._r
+        v = (r[-31] + r[-3]) & 0xFFFFFFFF
+        r.append(v)
+        if len(r) > 96:
+            del r[:-31]
+        return v >> 1
+
+
+#: the seed the original's Hamiltonian walk uses before every attempt
+HAMILTON_SEED = 1000
+
+
+def hamiltonian_walk(pgraph, first: int) -> Optional[List[int]]:
+    """The original's randomised greedy walk from ``first``: repeatedly move to a neighbour
+    (in the graph file's order) not yet on the walk, chosen by ``rand() % count`` after
+    ``srand(1000)``; the vertex list if it covers the graph, None if it gets stuck."""
+    rng = CRand(HAMILTON_SEED)
+    walk = [first]
+    on = {first}
+    while len(walk) < pgraph.n:
+        free = [w for w, _ in pgraph.neighbors[walk[-1]] if w not in on]
+        if not free:
+            return None
+        w = free[rng.rand() % len(free)]
+        walk.append(w)
+        on.add(w)
+    return walk
+
+
+def hamiltonian_route(pgraph) -> Optional[List[int]]:
+    """The original CGG's route when its Hamiltonian step succeeds, else None.
+
+    Walks are tried from every vertex in id order: the first Hamiltonian *circuit* wins
+    (closed by repeating its first vertex); otherwise the last Hamiltonian *path* found is
+    closed by walking it back (2L - 1 entries)."""
+    found = None
+    for v in range(pgraph.n):
+        walk = hamiltonian_walk(pgraph, v)
+        if walk is None:
+            continue
+        if pgraph.n > 1 and pgraph.arc_cost(walk[-1], walk[0]) is not None:
+            return walk + walk[:1]
+        found = walk
+    if found is None:
+        return None
+    return found + found[-2::-1] if len(found) > 1 else [found[0], found[0]]
 
 
 def route_cost(pgraph, route: Sequence[int]) -> float:

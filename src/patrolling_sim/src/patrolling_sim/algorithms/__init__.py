@@ -6,4 +6,4 @@ from .base import REGISTRY, PatrolStrategy, StrategyContext, Driver, register  #
 from .base import argmax_random, create, names  # noqa: F401,E402
 
 # one module per algorithm; importing it registers it (adding one = a file + a line here)
-from . import rand, cr, hcr, hpcc, cgg, msp, gbs, sebs, cbls, dtag, dtap  # noqa: F401,E402
+from . import rand, cr, hcr, hpcc, cgg, cgg_tsp, msp, gbs, sebs, cbls, dtag, dtap  # noqa: F401,E402

@@ -30,7 +30,7 @@ from typing import Any, Callable, Dict, List, Optional
 
 from ..graph import PatrolGraph
 
-#: message type ids on /results (patrolling_sim_facts.md section 2.3)
+#: message type ids on /results (docs/protocol.md)
 MSG_INIT = 10
 MSG_TARGET_REACHED = 11
 MSG_INTERFERENCE = 12
@@ -40,7 +40,11 @@ MSG_DTA_IDLENESS = 40
 MSG_SSI_TASK_REQUEST = 41
 MSG_SSI_BID = 42
 
+#: largest value of an int16 payload entry (every /results entry is an int16)
 INT16_MAX = 32767
+#: what the original's DTA agents send instead of an idleness entry (10 x seconds) or a bid
+#: that does not fit an int16
+INT16_CAP = 32000
 
 
 class Driver:
@@ -112,12 +116,17 @@ class PatrolStrategy:
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, start_vertex: int, now: float) -> None:
-        """Called once at GO. Default: last_visit of the start vertex = now + 0.1 (the
-        original's convention, so it is not chosen first) and tables at zero."""
+        """Called once at GO, before the first decision. Default, as the original's agent:
+        every vertex was last visited at time 0 (the clock's zero), the start vertex at 0.1
+        (so that it looks visited), and the idleness table is all zero: the original does not
+        refresh it before its first decision, so the first choice of an idleness-driven rule
+        is a tie among the neighbours (broken uniformly with ``rng``), HCR's and HPCC's the
+        nearest candidate. ``now`` is not used by the default (graph mode's GO is t = 0; ROS
+        mode's clock also starts at 0)."""
         self.current = start_vertex
-        self.last_visit = [now] * self.graph.n
-        self.last_visit[start_vertex] = now + 0.1
-        self.update_idleness(now)
+        self.last_visit = [0.0] * self.graph.n
+        self.last_visit[start_vertex] = 0.1
+        self.idleness = [0.0] * self.graph.n
 
     def next_vertex(self, now: float) -> int:
         """Decide the next goal from ``self.current``; stores it in ``self.next``."""
@@ -126,7 +135,8 @@ class PatrolStrategy:
 
     def on_arrival(self, vertex: int, now: float) -> None:
         """The robot reached ``vertex`` (after the goal wait). Default: record the visit and
-        refresh the idleness table. Subclasses extend it to send their messages."""
+        refresh the whole idleness table (the original's update_idleness). Messages are sent
+        in :meth:`send_results`, never here."""
         self.current = vertex
         self.last_visit[vertex] = now
         self.update_idleness(now)
@@ -143,16 +153,18 @@ class PatrolStrategy:
 
     def on_goal_failed(self, vertex: int, now: float) -> int:
         """Navigation gave up on ``vertex`` after the resends. Default: as the original's
-        onGoalNotComplete -- recompute; if that gives the failed vertex again, try up to
-        10 random neighbours of the current vertex. Returns the new goal."""
+        onGoalNotComplete -- recompute; while that gives the failed vertex again, draw a
+        random neighbour of the current vertex (at most 10 draws); if the result is still
+        the failed vertex and that is the current vertex, draw random vertices until it
+        differs. Returns the new goal."""
         v = self.choose_next(now)
-        if v == vertex:
-            nbrs = self.graph.neighbor_ids(self.current)
-            for _ in range(10):
-                cand = self.rng.choice(nbrs)
-                if cand != vertex:
-                    v = cand
-                    break
+        nbrs = self.graph.neighbor_ids(self.current)
+        draws = 0
+        while v == vertex and draws < 10 and nbrs:
+            v = self.rng.choice(nbrs)
+            draws += 1
+        while v == vertex and v == self.current and self.graph.n > 1:
+            v = self.rng.randrange(self.graph.n)
         self.next = v
         return v
 

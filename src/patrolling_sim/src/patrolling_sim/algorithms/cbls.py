@@ -94,10 +94,8 @@ class ConcurrentBayesianLearning(PatrolStrategy):
         self.decision = (u, cands, H)
         return choice
 
-    def next_vertex(self, now):
-        v = super().next_vertex(now)
-        self.send(MSG_SEBS_REACHED, self.current, v)
-        return v
+    def send_results(self, now):
+        self.send(MSG_SEBS_REACHED, self.current, self.next)
 
     # -- events -----------------------------------------------------------------------------
     def on_arrival(self, vertex, now):

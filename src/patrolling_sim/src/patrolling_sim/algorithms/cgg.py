@@ -1,12 +1,24 @@
 """CGG, cyclic strategy (``Cyclic``; Portugal & Rocha, ACM SAC 2010).
 
-All robots build the same closed route over the whole graph (deterministic:
-:func:`patrolling_sim.routes.closed_route`), rotate it to begin at their own start vertex and
-follow it forever. The route is a short closed walk — on grid 26 edges / 148.2 m, where the
-original's randomised builder produced a 49-edge out-and-back walk of about 279 m.
+All robots build the same closed route over the whole graph, rotate it to begin at the first
+occurrence of their own start vertex and follow it forever (skipping the repeated endpoint).
+The route is the original's: a Hamiltonian path found by its seeded randomised walk
+(:func:`patrolling_sim.routes.hamiltonian_route`), closed by walking it back -- on grid
+``0 1 6 5 10 11 16 15 20 21 22 17 18 23 24 19 14 9 4 3 2 7 12 13 8`` and back, 48 edges;
+a Hamiltonian circuit where the walk finds one. The construction is seeded, so it has no
+random element: the same route on every run.
+
+Where the walk finds neither (every shipped map but grid) the original goes on to a
+longest-cycle search with detours that is not reproduced here; this module then uses the
+short closed tour of :mod:`~patrolling_sim.algorithms.cgg_tsp` and logs it once (see
+docs/fidelity.md). ``CGG_TSP`` always uses that tour.
 """
-from ..routes import closed_route
+import logging
+
+from ..routes import closed_route, hamiltonian_route
 from .base import PatrolStrategy, register
+
+log = logging.getLogger(__name__)
 
 
 def rotate_to(route, vertex):
@@ -47,9 +59,27 @@ class RouteFollower(PatrolStrategy):
         return self.next
 
 
+def original_cyclic_route(pgraph):
+    """(route, source): the original's Hamiltonian route, or the short closed tour where the
+    original's first step finds no Hamiltonian path (source "hamiltonian" / "tsp")."""
+    cache = pgraph.__dict__.setdefault("_cgg_route_cache", {})
+    if "route" not in cache:
+        route = hamiltonian_route(pgraph)
+        if route is None:
+            log.info("CGG: no Hamiltonian path on graph '%s'; using the short closed tour "
+                     "(the original's longest-cycle construction is not reproduced)",
+                     pgraph.name)
+            cache["route"] = (closed_route(pgraph), "tsp")
+        else:
+            cache["route"] = (route, "hamiltonian")
+    route, source = cache["route"]
+    return list(route), source
+
+
 @register
 class Cyclic(RouteFollower):
     name = "CGG"
 
     def build_route(self, start_vertex):
-        return closed_route(self.graph, seed=int(self.ctx.params.get("route_seed", 1000)))
+        route, self.route_source = original_cyclic_route(self.graph)
+        return route

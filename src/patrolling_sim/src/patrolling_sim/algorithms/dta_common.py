@@ -7,9 +7,10 @@ import numpy as np
 
 from .. import paths
 from ..dta_params import load_dta_params
-from .base import INT16_MAX, MSG_DTA_IDLENESS
+from .base import INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS
 
-INT16_CAP = 32000
+#: the payload carries idleness in tenths of a second
+IDLENESS_SCALE = 10.0
 log = logging.getLogger(__name__)
 
 
@@ -32,12 +33,14 @@ class IdlenessEstimate:
     def merge(self, received, now):
         """Take the smaller of own and received (message payload is 10 x seconds)."""
         g = self.advance(now)
-        r = np.asarray(received[:len(g)], dtype=float) / 10.0
+        r = np.asarray(received[:len(g)], dtype=float) / IDLENESS_SCALE
         np.minimum(g[:len(r)], r, out=g[:len(r)])
 
     def encode(self, now, zero=None):
-        """Payload ``I_0..I_{V-1}`` (int(10*gi), values above int16 replaced by 32000)."""
-        x = (10.0 * self.advance(now)).astype(np.int64)
+        """Payload ``I_0..I_{V-1}``: int(10 * gi), values above INT16_MAX replaced by
+        INT16_CAP (the original replaces values above 32768, so 32768 itself wraps to
+        -32768 in its int16 message; here every value that does not fit is capped)."""
+        x = (IDLENESS_SCALE * self.advance(now)).astype(np.int64)
         if zero is not None:
             x[zero] = 0
         over = x > INT16_MAX
@@ -60,19 +63,9 @@ def dta_params(ctx, file_name, defaults):
     return {k: float(got.get(k, 0.0)) for k in defaults}
 
 
-_last_decoded = (None, None)     # (message object, its payload as an array)
-
-
 def decode_idleness(data, n):
     """(values as a float array of 10 x seconds, next) from ``[id, 40, I_0..I_{n-1}, next]``,
-    or None if malformed. A broadcast hands the same message object to every receiver in
-    turn (graph mode), so the last conversion is reused for that very object."""
-    global _last_decoded
+    or None if malformed."""
     if len(data) != n + 3 or data[1] != MSG_DTA_IDLENESS:
         return None
-    obj, values = _last_decoded
-    if obj is not data:
-        values = np.asarray(data[2:2 + n], dtype=float)
-        values.flags.writeable = False
-        _last_decoded = (data, values)
-    return values, data[2 + n]
+    return np.asarray(data[2:2 + n], dtype=float), data[2 + n]

@@ -9,8 +9,11 @@ with time, merged with teammates' estimates by taking the minimum). On reaching 
 
 (origin = the robot's start position), parameters from ``params/DTA/DTAGreedy.params``
 (1, -0.75, -5). It then broadcasts ``[id, 40, I_0..I_{V-1}, next]`` with its own next goal's
-entry as 0. If a teammate announces the same next goal, the robot with the higher id yields:
-it treats that vertex as visited, recomputes and redirects.
+entry as 0. Conflict rule, as the original: a robot that receives a teammate's message whose
+``next`` equals its own next goal gives that goal up -- whatever the ids, so when the two
+messages cross both robots yield -- pretends it has reached the contested vertex (its
+current vertex becomes that vertex, not reported to the monitor, no message sent), re-plans
+from it (path costs from the contested vertex) and heads to the new goal.
 """
 import numpy as np
 
@@ -53,21 +56,21 @@ class DTAGreedy(PatrolStrategy):
         return (p["theta_idleness"] * g + p["theta_navigation"] * self.graph.dist[u]
                 + p["theta_distance_from_origin"] * self._origin_dist)
 
-    def choose_next(self, now, exclude=()):
+    def choose_next(self, now):
+        """Zero the current vertex's estimate, then the first maximum of the utility over
+        the other reachable vertices (the original's compute_next_vertex)."""
         u = self.current
-        score = self.utility(u, self.gi.advance(now))
+        g = self.gi.advance(now)
+        g[u] = 0.0
+        score = self.utility(u, g)
         score[~np.isfinite(self.graph.dist[u])] = -np.inf
         score[u] = -np.inf
-        for v in exclude:
-            score[v] = -np.inf
         if not np.isfinite(score).any():
             return u
         return int(np.argmax(score))        # first maximum, as the original
 
-    def next_vertex(self, now):
-        v = super().next_vertex(now)
-        self.send(MSG_DTA_IDLENESS, *self.gi.encode(now, zero=v), v)
-        return v
+    def send_results(self, now):
+        self.send(MSG_DTA_IDLENESS, *self.gi.encode(now, zero=self.next), self.next)
 
     def on_message(self, data, now):
         dec = decode_idleness(data, self.graph.n)
@@ -75,8 +78,7 @@ class DTAGreedy(PatrolStrategy):
             return
         values, their_next = dec
         self.gi.merge(values, now)
-        if their_next == self.next and self.next is not None and self.id > data[0]:
-            taken = self.next
-            self.gi.values[taken] = 0.0
-            self.next = self.choose_next(now, exclude=(taken,))
+        if self.next is not None and their_next == self.next:
+            self.current = self.next        # as if reached (not reported)
+            self.next = self.choose_next(now)
             self.driver.redirect(self.next)

@@ -25,9 +25,9 @@ best candidate by U.
 """
 import numpy as np
 
-from .base import (INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID, MSG_SSI_TASK_REQUEST,
-                   PatrolStrategy, register)
-from .dta_common import INT16_CAP, IdlenessEstimate, decode_idleness, dta_params
+from .base import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID,
+                   MSG_SSI_TASK_REQUEST, PatrolStrategy, register)
+from .dta_common import IdlenessEstimate, decode_idleness, dta_params
 
 DEFAULTS = {"timeout": 3.0, "theta_idleness": 1.0, "theta_navigation": 0.0,
             "theta_hop": -2.0, "threshold": 0.0, "hist": 0.0}
@@ -124,7 +124,6 @@ class DTASSIPart(PatrolStrategy):
         self.gi.advance(now)[nxt] = 0.0
         self.next = nxt
         self.excluded = {nxt, u}
-        self._auction(now)
         return nxt
 
     def on_arrival(self, vertex, now):
@@ -132,10 +131,11 @@ class DTASSIPart(PatrolStrategy):
         self.gi.advance(now)[vertex] = 0.0
         self._drop(vertex)
 
-    def next_vertex(self, now):
-        v = super().next_vertex(now)
-        self.send(MSG_DTA_IDLENESS, *self.gi.encode(now), v)
-        return v
+    def send_results(self, now):
+        """As the original: the idleness message, then (once the goal is on its way) the
+        auction for the target after the next one."""
+        self.send(MSG_DTA_IDLENESS, *self.gi.encode(now), self.next)
+        self._auction(now)
 
     # -- auctions ---------------------------------------------------------------------------
     def _auction(self, now):

@@ -4,7 +4,10 @@ Each neighbour w of the current vertex u gets a gain ``g = idl[w] / max(c(u,w), 
 and the probability ``P = G1 * exp(ln(1/G1) * g / G2)`` (1 if ``g >= G2``); the robot moves
 to the argmax. Idleness is shared: every robot broadcasts ``[id, 31, v]`` when it reaches v,
 and a receiver treats v as visited now. G1, G2 and edge_min depend on the map and the team
-size (the original's calibrated table below; other combinations use the defaults).
+size (the original's calibrated table below): edge_min is the map's value whatever the team
+size; G2 is the table's value for that team size, 100 for team sizes the table lacks; maps
+outside the table use G2 100 and edge_min 1. G1 is 0.1 everywhere. All three can be
+overridden with the ``G1``/``G2``/``edge_min`` parameters.
 """
 import math
 
@@ -22,9 +25,7 @@ GBS_TABLE = {
 def gbs_params(map_name, team_size):
     """(G1, G2, edge_min) for a map and team size."""
     edge_min, table = GBS_TABLE.get(map_name, (EDGE_MIN_DEFAULT, {}))
-    if team_size in table:
-        return G1_DEFAULT, table[team_size], edge_min
-    return G1_DEFAULT, G2_DEFAULT, EDGE_MIN_DEFAULT
+    return G1_DEFAULT, table.get(team_size, G2_DEFAULT), edge_min
 
 
 def gbs_probability(gain, g1, g2):
@@ -54,10 +55,8 @@ class GreedyBayesian(PatrolStrategy):
         return argmax_random(self.graph.neighbor_ids(u), lambda w: self.probability(u, w),
                              self.rng)
 
-    def next_vertex(self, now):
-        v = super().next_vertex(now)
+    def send_results(self, now):
         self.send(MSG_GBS_REACHED, self.current)
-        return v
 
     def on_message(self, data, now):
         if len(data) >= 3 and data[1] == MSG_GBS_REACHED and 0 <= data[2] < self.graph.n:

@@ -36,10 +36,8 @@ class StateExchangeBayesian(PatrolStrategy):
         return argmax_random(self.graph.neighbor_ids(u), lambda w: self.probability(u, w),
                              self.rng)
 
-    def next_vertex(self, now):
-        v = super().next_vertex(now)
-        self.send(MSG_SEBS_REACHED, self.current, v)
-        return v
+    def send_results(self, now):
+        self.send(MSG_SEBS_REACHED, self.current, self.next)
 
     def on_message(self, data, now):
         if len(data) >= 4 and data[1] == MSG_SEBS_REACHED and 0 <= data[2] < self.graph.n:
