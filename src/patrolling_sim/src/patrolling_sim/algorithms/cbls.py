@@ -2,28 +2,38 @@
 patrol with Bayesian learning", Autonomous Robots 40(5), 2016).
 
 Each robot keeps, per vertex, the number of visits it knows of ``n[v]`` (own and reported),
-the running mean idleness at those visits ``avg[v]``, and a learnt weight per directed arc
-``real_hist[u->c]`` (start 1.0, clamped to [0.5, 2]). At vertex u:
+the running mean idleness at those visits ``avg[v]`` (updated, as the original, with v's
+idleness as last refreshed, then the whole table is refreshed: on every own arrival and every
+teammate's report), and a learnt weight per directed arc ``real_hist[u->c]`` (start 1.0,
+clamped to [0.5, 2]). The first decision sees an all-zero table. At vertex u:
 
 1. candidates = neighbours no teammate announced as its next goal (all if none remain);
    a single candidate is taken directly;
 2. prior of candidate c: its expected idleness ``cur[c] = (avg[c]*n[c] + idl[c]) / (n[c]+1)``,
    blended 0.75/0.25 with the best ``cur`` among c's own free neighbours (look-ahead; a
-   dead end uses cur[c] only); priors are normalised;
-3. posterior = prior * hist[u->c] (hist = real_hist normalised over u's arcs); argmax, ties
-   to the cheaper edge;
-4. learning, on reaching the chosen vertex: with H the normalised entropy of the posteriors
-   of that decision, the arcs of the decision whose targets now have the highest current
-   idleness are rewarded by +(1-H), those with the lowest punished by -(1-H) (punishment wins
-   when both apply).
+   dead end, or every neighbour of u taken, uses cur[c] only; so does a look-ahead maximum
+   <= 0.001); priors are normalised (uniform if their sum is <= 0.001);
+3. posterior = prior * hist[u->c] (hist = real_hist normalised over u's arcs); argmax; ties
+   go to the cheapest edge, and among equally cheap ones to the last in neighbour order (the
+   original's loop keeps the last ``<=``) -- no random draw;
+4. learning, on reaching the chosen vertex, on the table refreshed at that arrival: with H
+   the normalised entropy of the posteriors of that decision, the arcs of the decision whose
+   targets have the highest idleness are rewarded by +(1-H), those with the lowest punished
+   by -(1-H) (punishment wins when both apply).
 
-Robots broadcast ``[id, 32, v, next]`` (SEBS's message id) on reaching v.
+Robots broadcast ``[id, 32, v, next]`` (SEBS's message id) on reaching v. Intentions count
+for every teammate (the original counts robots below its local TEAMSIZE, which grows from
+/positions messages; see docs/fidelity.md).
 """
 import math
 
 from .base import MSG_SEBS_REACHED, PatrolStrategy, register
 
 HIST_MIN, HIST_MAX = 0.5, 2.0
+#: weight of a candidate's own expected idleness in the look-ahead prior
+W_FIRST_LAYER = 0.75
+#: below this, a look-ahead maximum or a prior sum counts as zero
+LOOKAHEAD_EPS = 0.001
 
 
 @register
@@ -40,16 +50,22 @@ class ConcurrentBayesianLearning(PatrolStrategy):
         self.decision = None            # (u, candidates, H) of the last decision with a choice
 
     def start(self, start_vertex, now):
+        """As the original's CBLS agent: last visits at the agent's start time (the start
+        vertex 0.1 s later), one visit counted on the start vertex, the idleness table all
+        zero until the first event."""
         super().start(start_vertex, now)
+        self.last_visit = [now] * self.graph.n
+        self.last_visit[start_vertex] = now + 0.1
         self.nvis[start_vertex] = 1
 
     # -- shared knowledge -------------------------------------------------------------------
     def _record_visit(self, v, now):
-        idl = now - self.last_visit[v]
-        self.avg[v] = (self.avg[v] * self.nvis[v] + idl) / (self.nvis[v] + 1)
+        """A visit of v (own or reported), then the whole table refreshed, as the original:
+        the running mean takes the idleness of v *as last refreshed* (not now - last visit)."""
         self.nvis[v] += 1
+        self.avg[v] = (self.avg[v] * (self.nvis[v] - 1) + self.idleness[v]) / self.nvis[v]
         self.last_visit[v] = now
-        self.idleness[v] = 0.0          # the whole table is refreshed at each decision
+        self.update_idleness(now)
 
     def cur(self, v):
         return (self.avg[v] * self.nvis[v] + self.idleness[v]) / (self.nvis[v] + 1)
@@ -63,29 +79,34 @@ class ConcurrentBayesianLearning(PatrolStrategy):
 
     # -- decision ---------------------------------------------------------------------------
     def choose_next(self, now):
-        self.update_idleness(now)
+        """On the table as last refreshed (the original does not refresh it to decide)."""
         u = self.current
         nbrs = self.graph.neighbor_ids(u)
         taken = self._taken()
-        cands = [w for w in nbrs if w not in taken] or nbrs
+        cands = [w for w in nbrs if w not in taken]
+        all_occupied = not cands
+        cands = cands or nbrs
         if len(cands) == 1:
             self.decision = None
             return cands[0]
         priors = []
         for c in cands:
-            if self.graph.degree(c) == 1:
-                prior = self.cur(c)
-            else:
-                free = [w for w in self.graph.neighbor_ids(c) if w not in taken]
-                m = max((self.cur(w) for w in free), default=0.0)
-                prior = self.cur(c) if m <= 0.001 else 0.75 * self.cur(c) + 0.25 * m
+            m = 0.0
+            if self.graph.degree(c) > 1 and not all_occupied:
+                m = max((self.cur(w) for w in self.graph.neighbor_ids(c) if w not in taken),
+                        default=0.0)
+            prior = self.cur(c) if m <= LOOKAHEAD_EPS else \
+                W_FIRST_LAYER * self.cur(c) + (1.0 - W_FIRST_LAYER) * m
             priors.append(prior)
         total = sum(priors)
-        priors = [p / total for p in priors] if total > 0.001 else [1.0 / len(cands)] * len(cands)
+        priors = [p / total for p in priors] if total > LOOKAHEAD_EPS else \
+            [1.0 / len(cands)] * len(cands)
         post = [p * self.hist(u, c) for p, c in zip(priors, cands)]
         best = max(post)
-        ties = [c for p, c in zip(post, cands) if p >= best - 1e-12]
-        choice = min(ties, key=lambda c: (self.graph.arc_cost(u, c), c))
+        ties = [c for p, c in zip(post, cands) if p >= best - 1e-12 * max(1.0, best)]
+        # the original's tie-break: the cheapest edge, the last such tie in neighbour order
+        cheapest = min(self.graph.arc_cost(u, c) for c in ties)
+        choice = [c for c in ties if self.graph.arc_cost(u, c) == cheapest][-1]
         s = sum(post)
         H = 0.0
         if s > 0:
@@ -99,10 +120,11 @@ class ConcurrentBayesianLearning(PatrolStrategy):
 
     # -- events -----------------------------------------------------------------------------
     def on_arrival(self, vertex, now):
-        changed = vertex != self.current
+        if vertex == self.current:          # the original updates nothing then
+            return
         self.current = vertex
-        self._record_visit(vertex, now)
-        if changed and self.decision is not None:
+        self._record_visit(vertex, now)     # table refreshed before learning
+        if self.decision is not None:
             self._learn()
 
     def _learn(self):
@@ -120,6 +142,7 @@ class ConcurrentBayesianLearning(PatrolStrategy):
         self.decision = None
 
     def on_message(self, data, now):
-        if len(data) >= 4 and data[1] == MSG_SEBS_REACHED and 0 <= data[2] < self.graph.n:
+        if len(data) >= 4 and data[1] == MSG_SEBS_REACHED and 0 <= data[2] < self.graph.n \
+                and self.ctx.team_size > 1:
             self._record_visit(data[2], now)
             self.intention[data[0]] = data[3]
