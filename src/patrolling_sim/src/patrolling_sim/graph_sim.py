@@ -1,32 +1,42 @@
 """Graph-level discrete-event simulator: run a patrolling experiment in seconds, no ROS.
 
-Robots are points that travel along shortest paths of the patrol graph at a constant speed.
-Everything else is the real thing: the same strategy classes as the ROS PatrolAgent (through
-the same :class:`~patrolling_sim.algorithms.base.Driver` protocol), the same monitor metrics
-(:class:`~patrolling_sim.monitor_core.MonitorCore`) and the same result files
-(:class:`~patrolling_sim.results.ResultWriter`, nav_module ``graph``), so graph-mode results
-load in the report next to ROS runs.
+Every robot is the same :class:`~patrolling_sim.agent_core.PatrolAgentCore` as in the ROS
+PatrolAgent node (same strategies, same life cycle and order of events, see
+``docs/protocol.md``), driven here by simulated time; the monitor metrics
+(:class:`~patrolling_sim.monitor_core.MonitorCore`) and result files
+(:class:`~patrolling_sim.results.ResultWriter`, nav_module ``graph``) are the ROS mode's, so
+graph-mode results load in the report next to ROS runs.
 
-Timeline of one robot, mirroring the agent node: GO at t = 0; after a random start delay
-U(0, 1) s it reports its start vertex, decides, and travels; on reaching its goal it waits
-``goal_wait`` s, then the strategy's ``on_arrival`` runs, the visit is reported and the next
-goal chosen. Algorithm messages reach the other robots after ``comm_delay`` s, each dropped
-with probability ``loss`` (one seeded generator). Interference (robots physically blocking
-each other) is not modelled in this mode: the interference count is 0.
+The world this module adds (see ``docs/protocol.md``, "Graph mode"):
+
+- motion: a robot is a point moving at ``speed`` along the shortest graph path to its goal
+  (``travel="graph"``; positions interpolated along the edges), or in a straight line from
+  where it stands (``travel="euclidean"``); a trip takes at least ``MIN_TRIP`` s;
+- GO at t = 0 for every robot (all navigation servers are up at once);
+- navigation failure: a goal the graph cannot reach fails at once, and any goal fails with
+  probability ``goal_fail`` at a uniformly drawn point of its trip (one seeded generator);
+  the core then backs up, resends, and gives up after three resends, as in ROS mode;
+- positions: every ``FEEDBACK_PERIOD`` s each moving robot publishes its position and its
+  core evaluates interference (the 2 m / 10 s / 3 s rule), unless ``interference`` is off;
+- messages: visit reports and interferences reach the monitor at once; algorithm messages
+  reach the other robots after the core's delay and loss.
 
 Deterministic: the same inputs and seed give the same files (apart from wall-clock fields).
 """
+import bisect
 import heapq
 import itertools
 import os
+import math
 import random
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence
 
 from . import paths
-from .algorithms import REGISTRY, create
-from .algorithms.base import Driver, StrategyContext
+from .agent_core import GO, MONITOR_ID, Effects, build_agent
+from .algorithms import REGISTRY
+from .algorithms.base import MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from .errors import PatrolInputError
 from .graph import PatrolGraph
 from .monitor_core import MonitorCore, Stats
@@ -36,6 +46,10 @@ TIMERESULTS_PERIOD = 900.0
 #: shortest trip (s): a goal on the robot's own vertex still takes one navigation cycle, so
 #: simulated time always advances between two decisions of a robot
 MIN_TRIP = 0.5
+#: s between two navigation feedbacks (positions published, interference evaluated): the
+#: move_base controller's 5 Hz
+FEEDBACK_PERIOD = 0.2
+TRAVEL_MODES = ("graph", "euclidean")
 
 
 @dataclass
@@ -47,13 +61,16 @@ class GraphSimConfig:
     duration: float = 3600.0        # sim seconds after GO; 0 = until `cycles`
     cycles: int = 0                 # stop after this many complete patrol cycles; 0 = off
     seed: int = 0
-    speed: float = 1.0              # m/s along graph edges
+    speed: float = 1.0              # m/s along graph edges (or straight lines)
     gwait: float = 0.0
     comm_delay: float = 0.0
     loss: float = 0.0
     initpos: str = "default"
     results_dir: str = "results"
     params: dict = field(default_factory=dict)
+    goal_fail: float = 0.0          # probability that a navigation goal fails on the way
+    interference: bool = True       # robots within 2 m interfere (the original's rule)
+    travel: str = "graph"           # "graph": shortest graph path; "euclidean": straight line
 
     def validate(self):
         if self.alg not in REGISTRY:
@@ -73,37 +90,157 @@ class GraphSimConfig:
             raise PatrolInputError(f"argument --comm-delay: must be >= 0, got {self.comm_delay}")
         if not 0 <= self.loss < 1:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
+        if not 0 <= self.goal_fail < 1:
+            raise PatrolInputError(f"argument --goal-fail: must be in [0, 1), got {self.goal_fail}")
+        if self.travel not in TRAVEL_MODES:
+            raise PatrolInputError(f"argument --travel: must be one of {', '.join(TRAVEL_MODES)}"
+                                   f", got '{self.travel}'")
         paths.map_files(self.map)        # raises a one-line error for an unknown map
         return self
 
 
-class _Robot:
-    def __init__(self, rid):
+class _Robot(Effects):
+    """One robot's body in the graph world and the :class:`Effects` its core acts through.
+
+    The body is a point: on vertex ``a`` (``loc = (a, a, 0)``), or a fraction ``f`` along the
+    edge a->b (``loc = (a, b, f)``). A trip is a list of straight pieces
+    ``(x0, y0, x1, y1, length_m, a, b, f0, f1)`` run at constant speed."""
+
+    def __init__(self, sim, rid, start_vertex):
+        self.sim = sim
         self.id = rid
-        self.strategy = None
-        self.vertex = None          # last vertex reached (or passed through on a redirect)
+        self.core = None
+        self.loc = (start_vertex, start_vertex, 0.0)
+        self.xy = tuple(float(c) for c in sim.g.pos[start_vertex])
+        self.last_vertex = start_vertex       # last vertex reached (reachability of goals)
         self.goal = None
-        self.path = []              # vertices of the current trip
-        self.cum = []               # cumulative metres along path
+        self.pieces = None                    # active trip, None when standing still
+        self.cum = None                       # cumulative length at the end of each piece
         self.depart = 0.0
-        self.trip = 0               # token: invalidates an arrival event after a redirect
+        self.duration = 0.0
+        self.seq = None                       # the core's sequence number of the trip
+        self.token = 0                        # bumps on every stop: stale events ignored
 
-
-class _SimDriver(Driver):
-    def __init__(self, sim, robot):
-        self.sim, self.robot = sim, robot
-
+    # -- Effects ------------------------------------------------------------------------------
     def now(self):
         return self.sim.t
 
-    def send(self, data):
-        self.sim.broadcast(self.robot.id, list(data))
+    def publish(self, data):
+        self.sim.publish(self.id, data)
 
     def call_later(self, delay, fn):
-        self.sim.schedule(self.sim.t + max(0.0, delay), fn)
+        self.sim.schedule(self.sim.t + delay, fn)
 
-    def redirect(self, vertex):
-        self.sim.redirect(self.robot, vertex)
+    def backup(self):
+        """Nothing to do: the real manoeuvre moves a robot a few centimetres, a point robot
+        on the graph stays where it failed (the core still spends the back-up time)."""
+
+    def clear_costmaps(self):
+        """Nothing to do: the graph world has no costmaps."""
+
+    def cancel_goal(self):
+        self._stop()
+
+    def send_goal(self, vertex, seq):
+        sim = self.sim
+        self._stop()
+        self.token += 1
+        token = self.token
+        self.goal, self.seq = vertex, seq
+        pieces = self._route(vertex)
+        if pieces is None:                     # the graph cannot reach it: navigation fails
+            sim.schedule(sim.t, lambda: self._failed(token, seq))
+            return
+        cum, total = [], 0.0
+        for p in pieces:
+            total += p[4]
+            cum.append(total)
+        self.pieces, self.cum, self.depart = pieces, cum, sim.t
+        self.duration = max(MIN_TRIP, total / sim.cfg.speed)
+        if sim.cfg.goal_fail > 0 and sim.rng.random() < sim.cfg.goal_fail:
+            sim.schedule(sim.t + sim.rng.random() * self.duration,
+                         lambda: self._failed(token, seq))
+        else:
+            sim.schedule(sim.t + self.duration, lambda: self._arrived(token, seq))
+
+    # -- motion -------------------------------------------------------------------------------
+    def _route(self, goal):
+        """Pieces from the current location to ``goal``; None if unreachable."""
+        g = self.sim.g
+        res = g.resolution
+        gx, gy = (float(c) for c in g.pos[goal])
+        if not math.isfinite(g.dist[self.last_vertex, goal]):
+            return None
+        if self.sim.cfg.travel == "euclidean":
+            x, y = self.xy
+            return [(x, y, gx, gy, math.hypot(gx - x, gy - y), None, None, 0.0, 0.0)]
+        a, b, f = self.loc
+        if a != b and 0.0 < f < 1.0:
+            # mid-edge (after a stop): leave by whichever end of the edge is shorter overall
+            length = g.arc_cost(a, b) * res
+            x, y = self.xy
+            via_a = f * length + g.dist[a, goal] * res
+            via_b = (1.0 - f) * length + g.dist[b, goal] * res
+            if not (math.isfinite(via_a) or math.isfinite(via_b)):
+                return None
+            if via_b <= via_a:
+                end, first = b, (x, y, *g.pos[b], (1.0 - f) * length, a, b, f, 1.0)
+            else:
+                end, first = a, (x, y, *g.pos[a], f * length, a, b, f, 0.0)
+            return [first] + self._edge_pieces(g.path(end, goal))
+        start = b if (a != b and f >= 1.0) else a
+        path = g.path(start, goal)
+        return None if path is None else self._edge_pieces(path)
+
+    def _edge_pieces(self, path):
+        g = self.sim.g
+        res = g.resolution
+        out = []
+        for u, w in zip(path, path[1:]):
+            (x0, y0), (x1, y1) = g.pos[u], g.pos[w]
+            out.append((float(x0), float(y0), float(x1), float(y1), g.arc_cost(u, w) * res,
+                        u, w, 0.0, 1.0))
+        return out
+
+    def position(self, t):
+        """(x, y, loc) at time ``t`` of the active trip."""
+        total = self.cum[-1] if self.cum else 0.0
+        if total <= 0.0:
+            return self.xy[0], self.xy[1], self.loc
+        s = min(total, max(0.0, (t - self.depart) / self.duration * total))
+        k = min(bisect.bisect_left(self.cum, s), len(self.pieces) - 1)
+        x0, y0, x1, y1, length, a, b, f0, f1 = self.pieces[k]
+        into = s - (self.cum[k] - length)
+        r = into / length if length > 0 else 1.0
+        x, y = x0 + (x1 - x0) * r, y0 + (y1 - y0) * r
+        loc = (a, b, f0 + (f1 - f0) * r) if a is not None else self.loc
+        return x, y, loc
+
+    def _stop(self):
+        """Stand still where the robot is now; pending arrival/failure events go stale."""
+        if self.pieces is None:
+            return
+        x, y, self.loc = self.position(self.sim.t)
+        self.xy = (x, y)
+        self.pieces = self.cum = None
+        self.token += 1
+
+    def _arrived(self, token, seq):
+        if token != self.token:
+            return
+        v = self.goal
+        self.pieces = self.cum = None
+        self.token += 1
+        self.loc = (v, v, 0.0)
+        self.xy = tuple(float(c) for c in self.sim.g.pos[v])
+        self.last_vertex = v
+        self.core.on_goal_result(seq, True)
+
+    def _failed(self, token, seq):
+        if token != self.token:
+            return
+        self._stop()
+        self.core.on_goal_result(seq, False)
 
 
 class GraphSimulator:
@@ -117,8 +254,7 @@ class GraphSimulator:
         if pgraph is None:
             pgraph = PatrolGraph.load(paths.map_files(cfg.map)[1])
         self.g = pgraph
-        self.rng = random.Random(cfg.seed)
-        self.msg_rng = random.Random(cfg.seed * 7919 + 1)
+        self.rng = random.Random(cfg.seed)     # the world's own draws (goal failures)
         if start_vertices is None:
             start_vertices = self._start_vertices()
         if len(start_vertices) != cfg.robots:
@@ -128,12 +264,13 @@ class GraphSimulator:
         self._events = []
         self._seq = itertools.count()
         self.monitor = MonitorCore(self.g.n, cfg.robots)
-        self.robots = [_Robot(i) for i in range(cfg.robots)]
+        self.robots = [_Robot(self, i, v) for i, v in enumerate(self.start_vertices)]
+        #: positions robots have published while moving (shared by all cores)
+        self.team_pos = {}
         self.prefix = prefix
         self.log = log or (lambda s: None)
-        self.messages_sent = 0
-        self.messages_lost = 0
         self.termination = None
+        self.writer = None
 
     def _start_vertices(self):
         from .initial_poses import load_initial_poses, start_positions
@@ -145,61 +282,45 @@ class GraphSimulator:
                                  self.cfg.initpos, load_initial_poses(table_path), table_path)
         return [self.g.nearest_vertex(x, y) for x, y in pos]
 
+    @property
+    def messages_sent(self):
+        """Algorithm messages the robots sent (before loss)."""
+        return sum(r.core.messages_sent for r in self.robots if r.core is not None)
+
+    @property
+    def messages_lost(self):
+        return sum(r.core.messages_lost for r in self.robots if r.core is not None)
+
     # -- event queue ------------------------------------------------------------------------
     def schedule(self, t, fn):
         heapq.heappush(self._events, (t, next(self._seq), fn))
 
-    def broadcast(self, sender, data):
-        self.messages_sent += 1
-        if self.cfg.loss > 0 and self.msg_rng.random() < self.cfg.loss:
-            self.messages_lost += 1
-            return
-        t = self.t + self.cfg.comm_delay
-        for r in self.robots:
-            if r.id != sender and r.strategy is not None:
-                self.schedule(t, lambda r=r: r.strategy.on_message(data, self.t))
+    def publish(self, sender, data):
+        """A message on /results: visit reports and interferences go to the monitor at once;
+        algorithm messages reach every other robot as an event at the same time."""
+        kind = data[1] if len(data) > 1 else None
+        if kind == MSG_TARGET_REACHED and len(data) > 2:
+            self._report(sender, data[2])
+        elif kind == MSG_INTERFERENCE:
+            self.monitor.interference(sender, self.t)
+        elif kind != MSG_INIT:
+            for r in self.robots:
+                if r.id != sender:
+                    self.schedule(self.t, lambda r=r: r.core.on_results(data))
 
-    # -- motion -----------------------------------------------------------------------------
-    def _travel(self, robot, origin, goal, t0):
-        robot.goal = goal
-        robot.trip += 1
-        robot.path = self.g.path(origin, goal) or [origin]
-        res = self.g.resolution
-        cum = [0.0]
-        for a, b in zip(robot.path, robot.path[1:]):
-            cum.append(cum[-1] + self.g.arc_cost(a, b) * res)
-        robot.cum = cum
-        robot.depart = t0
-        trip = robot.trip
-        self.schedule(t0 + max(MIN_TRIP, cum[-1] / self.cfg.speed),
-                      lambda: self._arrived(robot, trip))
-
-    def redirect(self, robot, vertex):
-        """Head to ``vertex`` from the next graph vertex on the current trip."""
-        if robot.goal is None:
-            return
-        done = (self.t - robot.depart) * self.cfg.speed
-        k = next((i for i, c in enumerate(robot.cum) if c >= done - 1e-9), len(robot.cum) - 1)
-        via = robot.path[k]
-        t_via = robot.depart + robot.cum[k] / self.cfg.speed
-        robot.vertex = via
-        self._travel(robot, via, vertex, max(self.t, t_via))
-
-    def _arrived(self, robot, trip):
-        if trip != robot.trip:
-            return
-        v = robot.goal
-        robot.vertex = v
-        robot.goal = None                       # waiting at the goal: nothing to redirect
-        self.schedule(self.t + self.cfg.gwait, lambda: self._complete(robot, v))
-
-    def _complete(self, robot, v):
-        s = robot.strategy
-        s.on_arrival(v, self.t)
-        nxt = s.next_vertex(self.t)
-        self._report(robot.id, v)
-        s.send_results(self.t)
-        self._travel(robot, v, nxt, self.t)
+    def _feedback(self):
+        """Navigation feedback of every moving robot: publish positions, then let each core
+        evaluate interference (as move_base feedback does, every FEEDBACK_PERIOD s)."""
+        t = self.t
+        moving = [r for r in self.robots if r.pieces is not None]
+        for r in moving:
+            x, y, _ = r.position(t)
+            self.team_pos[r.id] = (x, y)
+        for r in moving:
+            if r.pieces is not None:
+                x, y = self.team_pos[r.id]
+                r.core.on_feedback(r.seq, x, y)
+        self.schedule(t + FEEDBACK_PERIOD, self._feedback)
 
     # -- monitor ----------------------------------------------------------------------------
     def _report(self, rid, v):
@@ -213,21 +334,16 @@ class GraphSimulator:
                 self.writer.cycle_block(self.monitor.stats(self.t), time.monotonic() - self.wall0)
             self.log(f"t={self.t:.1f} s: patrol cycle {r.cycles} complete")
 
-    def _start_robot(self, robot):
+    def _make_core(self, robot):
+        cfg = self.cfg
         sv = self.start_vertices[robot.id]
-        x, y = self.g.pos[sv]
-        params = dict(self.cfg.params)
+        params = dict(cfg.params)
         params.setdefault("start_vertices", self.start_vertices)
-        ctx = StrategyContext(self.g, robot.id, self.cfg.robots, self.map_name,
-                              random.Random(self.cfg.seed * 1000 + robot.id + 1),
-                              _SimDriver(self, robot), params, (float(x), float(y)))
-        robot.strategy = create(self.cfg.alg, ctx)
-        robot.vertex = sv
-        robot.strategy.start(sv, self.t)
-        nxt = robot.strategy.next_vertex(self.t)
-        self._report(robot.id, sv)
-        robot.strategy.send_results(self.t)
-        self._travel(robot, sv, nxt, self.t)
+        robot.core = build_agent(robot, self.g, robot.id, cfg.robots, self.map_name, cfg.alg,
+                                 sv, robot.xy, seed=cfg.seed * 1000 + robot.id + 1,
+                                 params=params, goal_wait=cfg.gwait,
+                                 comm_delay=cfg.comm_delay, loss=cfg.loss)
+        robot.core.team_pos = self.team_pos
 
     def _timeresults(self):
         if self.writer:
@@ -249,10 +365,17 @@ class GraphSimulator:
                 self.map_name, cfg.robots, cfg.initpos, cfg.gwait, cfg.comm_delay, "graph",
                 cfg.alg, "", hostname(), os.path.basename(self.prefix)))
         try:
+            for r in self.robots:
+                self._make_core(r)
+            # every navigation server is up at once; the monitor sees N announcements: GO
             self.monitor.start(0.0)
             for r in self.robots:
-                self.schedule(self.rng.uniform(0.0, 1.0), lambda r=r: self._start_robot(r))
+                r.core.ready()
+            for r in self.robots:
+                r.core.on_results([MONITOR_ID, MSG_INIT, GO])
             self.schedule(TIMERESULTS_PERIOD, self._timeresults)
+            if cfg.interference:
+                self.schedule(FEEDBACK_PERIOD, self._feedback)
             end = cfg.duration if cfg.duration > 0 else float("inf")
             self.termination = "TIMEOUT"
             while self._events:
@@ -268,8 +391,8 @@ class GraphSimulator:
                 self.t = end
             stats = self.monitor.stats(self.t)
             if self.writer:
-                params = self.robots[0].strategy.algorithm_params if self.robots[0].strategy else ""
-                self.writer.info.algorithm_params = params
+                core = self.robots[0].core
+                self.writer.info.algorithm_params = core.strategy.algorithm_params if core else ""
                 self.writer.write_info(stats, time.monotonic() - self.wall0, self.termination)
             return stats
         finally:
