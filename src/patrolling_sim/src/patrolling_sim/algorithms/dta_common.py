@@ -1,6 +1,7 @@
 """Shared pieces of the DTA family (Farinelli, Iocchi, Nardi, "Distributed on-line dynamic
 task assignment for multi-robot patrolling", Autonomous Robots 41(6), 2017): a global
 idleness *estimate* that ages with time and is merged from teammates' type-40 messages."""
+import heapq
 import logging
 
 import numpy as np
@@ -69,3 +70,37 @@ def decode_idleness(data, n):
     if len(data) != n + 3 or data[1] != MSG_DTA_IDLENESS:
         return None
     return np.asarray(data[2:2 + n], dtype=float), data[2 + n]
+
+
+def path_hops(pgraph):
+    """(n, n) array: the number of edges on the cost-shortest path the original's Dijkstra
+    returns (the DTA agents count hops on it, not on a fewest-edge path). Ties between
+    equally cheap paths resolve as there: vertices are settled in (distance, id) order and a
+    path is replaced only by a strictly cheaper one, neighbours scanned in file order.
+    Unreachable pairs are inf. Computed once per graph object."""
+    cache = pgraph.__dict__.setdefault("_dta_path_hops", {})
+    if "hops" not in cache:
+        n = pgraph.n
+        hops = np.full((n, n), np.inf)
+        for s in range(n):
+            dist = {s: 0.0}
+            h = {s: 0}
+            heap = [(0.0, s)]
+            done = set()
+            while heap:
+                d, u = heapq.heappop(heap)
+                if u in done:
+                    continue
+                done.add(u)
+                for w, c in pgraph.neighbors[u]:
+                    if w in done:
+                        continue
+                    nd = d + c
+                    if nd < dist.get(w, float("inf")):
+                        dist[w] = nd
+                        h[w] = h[u] + 1
+                        heapq.heappush(heap, (nd, w))
+            for v, k in h.items():
+                hops[s, v] = k
+        cache["hops"] = hops
+    return cache["hops"]

@@ -2,35 +2,62 @@
 Farinelli, Iocchi, Nardi, Autonomous Robots 41(6), 2017).
 
 Every robot keeps a global idleness estimate ``gi`` (2V s at start, ageing, merged with the
-teammates' type-40 messages by taking the minimum) and a set of *tasks*: vertices for which it
-holds the best (lowest) bid. It looks one step ahead: on reaching a vertex it heads to the
-target it already won and meanwhile auctions the one after it, starting from that target cv:
+teammates' type-40 messages by taking the minimum), the best known bid per vertex and its
+*tasks*: the vertices whose best bid is its own. It decides one target ahead, as the original:
 
-1. take the not-yet-excluded vertex v maximising
-   ``U(cv, v) = theta_idleness * gi[v] + theta_hop * hops(cv, v) * V``;
-2. bid on it and broadcast ``[id, 41, v, bid]``; teammates record the bid, compute theirs
-   and reply ``[id, 42, v, bid]`` when theirs is better;
-3. after ``min(timeout, 1 + 0.1 * |tasks|)`` s (a timer: the robot keeps driving) v is won
-   if the best bid is ours, or taken anyway if it is adjacent to cv and its idleness is an
-   outlier (> mean + 2 SD) with a non-zero best bid; otherwise the next-best vertex is
-   auctioned (exclusions reset when exhausted).
+- at start it auctions its first target from the start vertex, and sends its first goal (and
+  its first visit report) only when that auction is over;
+- on reaching its target it heads for the target it won meanwhile (its estimate of that
+  vertex set to 0), reports the visit, broadcasts ``[id, 40, I_0..I_{V-1}, next]``, sends
+  the goal, and auctions the target after it, from ``cv`` = the new target. A robot that
+  arrives while that auction still runs stays where it is, unreported, until it ends (the
+  original's main loop is blocked in the auction); the life cycle asks again
+  (``next_vertex`` returns None meanwhile) and the end of the auction releases it at once.
 
-Bid (partition-based): ``pathcost(v, center) * (1 + |tasks|)``, center = the task vertex with
-the smallest summed path cost to all tasks; 0 if v already is our next target. A stored best
-bid is replaced when ``stored >= (1 + hist) * new``. Parameters from
-``params/DTA/DTASSI.params`` (timeout 3, theta_idleness 1, theta_navigation 0,
-theta_hop -2, threshold 0, hist 0). After each arrival the robot broadcasts
-``[id, 40, I_0..I_{V-1}, next]``. If it arrives before an auction is decided, it takes the
-best candidate by U.
+One auction from cv: candidates exclude cv and the current vertex; take the first maximum of
+``U(cv, v) = theta_idleness * gi[v] + theta_hop * hops(cv, v) * V`` (hops counted on the
+cost-shortest path, as the original's Dijkstra returns it), store its own bid without
+hysteresis and broadcast ``[id, 41, v, bid]``; teammates record it, compute and record theirs
+and reply ``[id, 42, v, best]`` if they now hold the best bid. After
+``min(timeout, 1 + 0.1 * |tasks|)`` s: won if this robot holds the best bid (its tasks are
+then refreshed); also taken, without becoming a task, if v is at most one hop from cv, its
+estimate exceeds mean + 2 SD of all estimates and its best bid is not 0; otherwise the next
+candidate is auctioned (once every vertex was tried, only the current vertex stays excluded).
+
+Bid (partition-based): 0 if v is already the next target or the one after; else
+``pathcost(v, center) * (1 + |tasks|)``. The centre starts at the start vertex and is
+recomputed whenever the task set changes: the current vertex or a task (other than the old
+centre) with the smallest summed path cost to all tasks, the current vertex winning ties. A
+recorded best bid is replaced by a new one when ``stored >= (1 + hist) * new``. Bids and
+estimates above the int16 range are sent as 32000. Parameters from
+``params/DTA/DTASSI.params`` (timeout 3, theta_idleness 1, theta_navigation 0 -- unused, as in
+the original --, theta_hop -2, threshold 0 -- unused --, hist 0).
+
+Without a life cycle that waits for a pending decision (``accepts_pending_decision`` on the
+driver) a robot that arrives during an auction takes the best candidate by U at once.
 """
 import numpy as np
 
 from .base import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID,
                    MSG_SSI_TASK_REQUEST, PatrolStrategy, register)
-from .dta_common import IdlenessEstimate, decode_idleness, dta_params
+from .dta_common import IdlenessEstimate, decode_idleness, dta_params, path_hops
 
 DEFAULTS = {"timeout": 3.0, "theta_idleness": 1.0, "theta_navigation": 0.0,
             "theta_hop": -2.0, "threshold": 0.0, "hist": 0.0}
+#: the stored value of "no bid yet" (any real bid replaces it)
+NO_BID = float("inf")
+#: auction wait: min(timeout, AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * |tasks|) seconds
+AUCTION_BASE_WAIT = 1.0
+AUCTION_WAIT_PER_TASK = 0.1
+#: greedy exception: an estimate above mean + GREEDY_SD * SD
+GREEDY_SD = 2.0
+
+
+def int16_payload(x):
+    """An int payload entry as the original sends it: int(x), values above INT16_MAX as
+    INT16_CAP."""
+    v = int(x)
+    return INT16_CAP if v > INT16_MAX else v
 
 
 @register
@@ -42,133 +69,156 @@ class DTASSIPart(PatrolStrategy):
         self.p = dta_params(ctx, "DTASSI", DEFAULTS)
         self.algorithm_params = ",".join(f"{self.p[k]:g}" for k in DEFAULTS)
         self.gi = None
-        self.best_bid = {}          # vertex -> (bid, robot id); change it via _set_best/_drop
-        self._owned = set()         # vertices whose best bidder is this robot (its tasks)
-        self._center = (None, None)  # (tasks tuple, its centre), recomputed when tasks change
-        self.won = None             # target after the current one, won at auction
-        self.excluded = set()
-        self.auction_token = 0
+        self.hops = path_hops(self.graph)
+        self.best_bid = {}          # vertex -> (bid, robot id)
+        self.task_set = set()       # vertices whose best bid is this robot's
+        self.center = None
+        self.won = None             # the target after the next one (next_next)
+        self.selected = set()       # candidates excluded in the running auction sequence
+        self.auction = None         # (token, cv, v) of the running auction, or None
+        self._token = 0
+        self._pending = False       # the life cycle waits for our decision
+        self._first = True
 
     # -- knowledge --------------------------------------------------------------------------
     def start(self, start_vertex, now):
         super().start(start_vertex, now)
         self.gi = IdlenessEstimate(self.graph.n, 2.0 * self.graph.n, now)
-        self.gi.values[start_vertex] = 0.0
+        self.center = start_vertex
+        self._start_auction(start_vertex, now)      # the first target
 
     @property
     def tasks(self):
-        return sorted(self._owned)
+        return sorted(self.task_set)
 
-    def _set_best(self, v, bid, robot):
-        self.best_bid[v] = (bid, robot)
-        if robot == self.id:
-            self._owned.add(v)
-        else:
-            self._owned.discard(v)
+    def _advance(self, now):
+        """The original's update_global_idleness: age the estimates, zero the current
+        vertex's."""
+        g = self.gi.advance(now)
+        g[self.current] = 0.0
+        return g
 
-    def _drop(self, v):
-        self.best_bid.pop(v, None)
-        self._owned.discard(v)
+    def _sum_cost(self, v):
+        D = self.graph.dist
+        return float(sum(D[v, t] for t in self.task_set))
 
-    def task_center(self, tasks):
-        """The task vertex minimising the summed path costs to all tasks (lowest id on ties),
-        recomputed only when the task set changes, as the original."""
-        key = tuple(tasks)
-        if self._center[0] != key:
-            D = self.graph.dist
-            sums = D[np.ix_(key, key)].sum(axis=1)
-            self._center = (key, key[int(np.argmin(sums))])
-        return self._center[1]
+    def _update_tasks(self):
+        tasks = {v for v, (_, r) in self.best_bid.items() if r == self.id}
+        if tasks != self.task_set:
+            self.task_set = tasks
+            best, best_sum = self.current, self._sum_cost(self.current)
+            for t in sorted(tasks):
+                if t != self.center:
+                    s = self._sum_cost(t)
+                    if s < best_sum:
+                        best, best_sum = t, s
+            self.center = best
 
     def utility(self, cv, g):
         """U(cv, v) for every vertex v (numpy array)."""
-        return (self.p["theta_idleness"] * g
-                + self.p["theta_hop"] * self.graph.hops[cv] * self.graph.n
-                + self.p["theta_navigation"] * self.graph.dist[cv])
+        return self.p["theta_idleness"] * g + self.p["theta_hop"] * self.hops[cv] * self.graph.n
 
     def bid(self, v):
         if v in (self.next, self.won):
             return 0.0
-        tasks = self.tasks
-        if tasks:
-            center = self.task_center(tasks)
-        else:
-            center = self.next if self.next is not None else self.current
-        return float(self.graph.dist[v, center]) * (1 + len(tasks))
+        return float(self.graph.dist[v, self.center]) * (1 + len(self.task_set))
 
     def record_bid(self, v, bid, robot):
-        old = self.best_bid.get(v)
-        if old is None or old[0] >= (1.0 + self.p["hist"]) * bid:
-            self._set_best(v, bid, robot)
+        """The original's update_bids: keep the better bid (with hysteresis), refresh tasks."""
+        old = self.best_bid.get(v, (NO_BID, -1))
+        if old[0] >= (1.0 + self.p["hist"]) * bid:
+            self.best_bid[v] = (bid, robot)
+        self._update_tasks()
 
     # -- decisions --------------------------------------------------------------------------
-    def _best_candidate(self, cv, now, exclude):
+    def _select(self, cv, now):
+        """First maximum of U over the candidates not yet excluded (reset when exhausted)."""
+        if len(self.selected) >= self.graph.n:
+            self.selected = {self.current}
         u = self.utility(cv, self.gi.advance(now))
-        u[~np.isfinite(self.graph.hops[cv])] = -np.inf
-        for v in exclude:
+        u[~np.isfinite(self.hops[cv])] = -np.inf
+        for v in self.selected:
             u[v] = -np.inf
-        if not np.isfinite(u).any():
-            return None
-        return int(np.argmax(u))            # first maximum: lowest id on ties
+        v = int(np.argmax(u)) if np.isfinite(u).any() else cv
+        self.selected.add(v)
+        return v
 
     def choose_next(self, now):
-        u = self.current
-        if self.won is not None and self.won != u:
-            nxt = self.won
-        else:
-            nxt = self._best_candidate(u, now, {u})
-            if nxt is None:             # a one-vertex graph
-                nxt = u
-        self.won = None
-        self._drop(nxt)
-        self.gi.advance(now)[nxt] = 0.0
+        """Fallback decision (goal failure, or no waiting life cycle): the best candidate by
+        U from the current vertex."""
+        g = self._advance(now)
+        u = self.utility(self.current, g)
+        u[~np.isfinite(self.hops[self.current])] = -np.inf
+        u[self.current] = -np.inf
+        return int(np.argmax(u)) if np.isfinite(u).any() else self.current
+
+    def next_vertex(self, now):
+        if self.won is None:
+            if getattr(self.driver, "accepts_pending_decision", False):
+                self._pending = True
+                return None
+            self.auction = None                 # no one waits: decide now
+            self.won = self.choose_next(now)
+        return self._take_won(now)
+
+    def _take_won(self, now):
+        nxt = self.won
+        if not self._first:
+            self.gi.advance(now)[nxt] = 0.0     # the active target looks visited
+        self._first = False
         self.next = nxt
-        self.excluded = {nxt, u}
         return nxt
 
     def on_arrival(self, vertex, now):
+        self._advance(now)                      # zeroes the vertex we leave
         super().on_arrival(vertex, now)
-        self.gi.advance(now)[vertex] = 0.0
-        self._drop(vertex)
 
     def send_results(self, now):
-        """As the original: the idleness message, then (once the goal is on its way) the
+        """As the original: the idleness message, then (the goal being on its way) the
         auction for the target after the next one."""
-        self.send(MSG_DTA_IDLENESS, *self.gi.encode(now), self.next)
-        self._auction(now)
+        self.send(MSG_DTA_IDLENESS, *[int16_payload(x) for x in 10.0 * self.gi.advance(now)],
+                  self.next)
+        self.won = None
+        self._start_auction(self.next, now)
 
     # -- auctions ---------------------------------------------------------------------------
-    def _auction(self, now):
-        cv = self.next
-        v = self._best_candidate(cv, now, self.excluded)
-        if v is None:
-            self.excluded = {cv, self.current}
-            v = self._best_candidate(cv, now, self.excluded)
-            if v is None:
-                return
-        self.excluded.add(v)
-        b = self.bid(v)
-        self.record_bid(v, b, self.id)
-        self.auction_token += 1
-        token = self.auction_token
-        self.send(MSG_SSI_TASK_REQUEST, v, min(int(b), INT16_MAX))
-        wait = min(self.p["timeout"], 1.0 + 0.1 * len(self.tasks))
-        self.driver.call_later(wait, lambda: self._auction_end(token, cv, v))
+    def _start_auction(self, cv, now):
+        self._advance(now)
+        self.selected = {self.current, cv}
+        self._auction_round(cv, now)
 
-    def _auction_end(self, token, cv, v):
-        if token != self.auction_token or self.next != cv:
-            return                      # superseded by a newer auction
+    def _auction_round(self, cv, now):
+        v = self._select(cv, now)
+        b = self.bid(v)
+        self.best_bid[v] = (b, self.id)         # forced: no hysteresis, tasks not refreshed
+        self._token += 1
+        token = self._token
+        self.auction = (token, cv, v)
+        self.send(MSG_SSI_TASK_REQUEST, v, int16_payload(b))
+        wait = min(self.p["timeout"], AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * len(self.task_set))
+        self.driver.call_later(wait, lambda: self._auction_end(token))
+
+    def _auction_end(self, token):
+        if self.auction is None or self.auction[0] != token:
+            return                              # superseded
+        _, cv, v = self.auction
         now = self.driver.now()
-        g = self.gi.advance(now)
-        best = self.best_bid.get(v, (0.0, self.id))
+        best = self.best_bid.get(v, (NO_BID, -1))
         if best[1] == self.id:
-            self.won = v
+            self._update_tasks()
+        elif not self._greedy(cv, v, best, now):
+            self._auction_round(cv, now)
             return
-        mean, sd = float(np.mean(g)), float(np.std(g))
-        if self.graph.hops[cv, v] <= 1 and g[v] > mean + 2 * sd and best[0] != 0:
-            self.won = v
-            return
-        self._auction(now)
+        self.auction = None
+        self.won = v
+        if self._pending:
+            self._pending = False
+            self.driver.redirect(self._take_won(now))
+
+    def _greedy(self, cv, v, best, now):
+        g = self.gi.advance(now)
+        return (self.hops[cv, v] <= 1 and g[v] > float(np.mean(g)) + GREEDY_SD * float(np.std(g))
+                and best[0] != 0)
 
     def on_message(self, data, now):
         if self.gi is None or len(data) < 2:
@@ -184,7 +234,7 @@ class DTASSIPart(PatrolStrategy):
                 return
             self.record_bid(v, b, data[0])
             if kind == MSG_SSI_TASK_REQUEST:
-                mine = self.bid(v)
-                self.record_bid(v, mine, self.id)
-                if self.best_bid[v][1] == self.id:
-                    self.send(MSG_SSI_BID, v, min(int(mine), INT16_CAP))
+                self.record_bid(v, self.bid(v), self.id)
+                best = self.best_bid[v]
+                if best[1] == self.id:
+                    self.send(MSG_SSI_BID, v, int16_payload(best[0]))
