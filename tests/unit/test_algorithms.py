@@ -27,6 +27,9 @@ def graph(name):
 
 
 class FakeDriver(Driver):
+    #: decisions are taken at once (DTAP does not wait for its auction)
+    accepts_pending_decision = False
+
     def __init__(self):
         self.t = 0.0
         self.sent = []

@@ -33,8 +33,9 @@ estimates above the int16 range are sent as 32000. Parameters from
 ``params/DTA/DTASSI.params`` (timeout 3, theta_idleness 1, theta_navigation 0 -- unused, as in
 the original --, theta_hop -2, threshold 0 -- unused --, hist 0).
 
-Without a life cycle that waits for a pending decision (``accepts_pending_decision`` on the
-driver) a robot that arrives during an auction takes the best candidate by U at once.
+The life cycle (docs/protocol.md) waits for a decision that is pending. A driver that cannot
+(a test double declaring ``accepts_pending_decision = False``) gets the best candidate by U at
+once instead.
 """
 import numpy as np
 
@@ -154,7 +155,7 @@ class DTASSIPart(PatrolStrategy):
 
     def next_vertex(self, now):
         if self.won is None:
-            if getattr(self.driver, "accepts_pending_decision", False):
+            if getattr(self.driver, "accepts_pending_decision", True):
                 self._pending = True
                 return None
             self.auction = None                 # no one waits: decide now

@@ -1,0 +1,115 @@
+#!/usr/bin/python3
+"""Fidelity tables for docs/fidelity.md.
+
+``maps``: graph mode on the larger maps (default cumberland, DIAG_labs, broughton), every
+algorithm, several seeds, the shipped start poses; prints one Markdown table (mean over
+seeds of avg idleness, max idleness and visits) and writes the raw figures as JSON.
+``--src`` picks the patrolling_sim source tree to import, so the same script measures an
+older checkout (the "before" table) and this one.
+
+``grid``: graph mode in the reference runs' world (grid, 4 robots at vertices 0, 13, 20, 11,
+600 s after GO, straight-line travel where the simulator offers it) against the original's
+own result files under tests/unit/data/original_runs/.
+
+Usage:
+    bench/fidelity_table.py maps [--src DIR] [--maps ...] [--robots 4] [--seeds 5]
+                                 [--duration 3600] [--json out.json]
+    bench/fidelity_table.py grid [--seeds 5] [--json out.json]
+"""
+import argparse
+import json
+import os
+import statistics
+import sys
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+DEFAULT_SRC = os.path.join(ROOT, "src", "patrolling_sim", "src")
+
+
+def _import(src):
+    sys.path.insert(0, os.path.abspath(src))
+    from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E402
+    from patrolling_sim import algorithms  # noqa: E402
+    return GraphSimConfig, GraphSimulator, algorithms
+
+
+def original_names(algorithms):
+    """The registered algorithms that carry one of the original's short names."""
+    orig = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
+    return [a for a in orig if a in algorithms.REGISTRY]
+
+
+def run_maps(a):
+    GraphSimConfig, GraphSimulator, algorithms = _import(a.src)
+    algs = a.algs or original_names(algorithms) + sorted(
+        set(algorithms.REGISTRY) - set(original_names(algorithms)))
+    raw = {}
+    print(f"Graph mode, {a.robots} robots, {a.duration:.0f} s, seeds 0..{a.seeds - 1}, "
+          f"shipped start poses; source {os.path.relpath(a.src, ROOT)}; mean over seeds.\n")
+    print("| alg | " + " | ".join(f"{m} avg / max / visits" for m in a.maps) + " |")
+    print("|---|" + "---|" * len(a.maps))
+    for alg in algs:
+        cells = []
+        for m in a.maps:
+            runs = []
+            for seed in range(a.seeds):
+                cfg = GraphSimConfig(map=m, robots=a.robots, alg=alg, duration=a.duration,
+                                     seed=seed)
+                s = GraphSimulator(cfg).run(write=False)
+                runs.append((s.global_avg, s.global_max, s.total_visits))
+            raw.setdefault(alg, {})[m] = runs
+            cells.append(" / ".join(f"{statistics.mean(r[k] for r in runs):.1f}"
+                                    for k in range(3)))
+        print(f"| {alg} | " + " | ".join(cells) + " |", flush=True)
+    if a.json:
+        with open(a.json, "w", encoding="utf-8") as f:
+            json.dump(dict(robots=a.robots, duration=a.duration, seeds=a.seeds, runs=raw), f)
+
+
+def run_grid(a):
+    sys.path.insert(0, os.path.join(ROOT, "tests", "unit"))
+    _import(a.src)
+    import fidelity_common as fc  # noqa: E402
+    algs = a.algs or fc.reference_algorithms()
+    raw = {}
+    starts = fc.simulator(algs[0], 0).start_vertices
+    print(f"grid, {fc.ROBOTS} robots at vertices {starts}, {fc.reference_duration():.0f} s "
+          f"after GO; original = mean of its runs (tests/unit/data/original_runs), ours = "
+          f"graph mode, mean of seeds 0..{a.seeds - 1}.\n")
+    print("| alg | original avg / max / visits | ours (graph) avg / max / visits | "
+          "ours (ROS, abstract world) |")
+    print("|---|---|---|---|")
+    for alg in algs:
+        ref = fc.reference_figures(alg)
+        ours = [fc.run_ours(alg, seed) for seed in range(a.seeds)]
+        raw[alg] = dict(original=ref, ours=ours)
+        mo = [statistics.mean(r[k] for r in ref) for k in range(3)]
+        mg = [statistics.mean(r[k] for r in ours) for k in range(3)]
+        print(f"| {alg} | {mo[0]:.1f} / {mo[1]:.1f} / {mo[2]:.0f} | "
+              f"{mg[0]:.1f} / {mg[1]:.1f} / {mg[2]:.0f} | pending |", flush=True)
+    if a.json:
+        with open(a.json, "w", encoding="utf-8") as f:
+            json.dump(raw, f)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="mode", required=True)
+    for name in ("maps", "grid"):
+        p = sub.add_parser(name)
+        p.add_argument("--src", default=DEFAULT_SRC, help="patrolling_sim source tree")
+        p.add_argument("--algs", nargs="+")
+        p.add_argument("--seeds", type=int, default=5)
+        p.add_argument("--json")
+    sub.choices["maps"].add_argument("--maps", nargs="+",
+                                     default=["cumberland", "DIAG_labs", "broughton"])
+    sub.choices["maps"].add_argument("--robots", type=int, default=4)
+    sub.choices["maps"].add_argument("--duration", type=float, default=3600.0)
+    a = ap.parse_args()
+    if a.seeds < 1:
+        ap.error(f"argument --seeds: must be >= 1, got {a.seeds}")
+    return run_maps(a) if a.mode == "maps" else run_grid(a)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
