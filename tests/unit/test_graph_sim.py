@@ -5,6 +5,7 @@ import sys
 
 import pytest
 
+from patrolling_sim.algorithms import names
 from patrolling_sim.errors import PatrolInputError
 from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator, claim_prefix
 from patrolling_sim.results import parse_info_line
@@ -117,8 +118,7 @@ def test_cli(tmp_path):
     assert bad.returncode == 2 and "unknown algorithm 'XX'" in bad.stderr
 
 
-@pytest.mark.parametrize("alg", ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS",
-                                 "CBLS", "DTAG", "DTAP"])
+@pytest.mark.parametrize("alg", names())
 @pytest.mark.parametrize("mapname,n", [("1r5", 3), ("1r5", 8), ("cumberland", 8)])
 def test_every_algorithm_runs_crowded_teams(alg, mapname, n, tmp_path):
     """Many robots on few vertices, with delay and loss: time advances, every vertex is
@@ -128,3 +128,129 @@ def test_every_algorithm_runs_crowded_teams(alg, mapname, n, tmp_path):
     assert sim.termination == "TIMEOUT"
     assert s.n_samples > 0
     assert all(v >= 0 for v in sim.monitor.visits), f"{alg} left vertices unvisited"
+
+
+# -- the graph world around the shared life cycle: interference, failure, travel ----------
+from patrolling_sim.algorithms import REGISTRY  # noqa: E402
+from patrolling_sim.algorithms.base import PatrolStrategy  # noqa: E402
+from patrolling_sim.graph import PatrolGraph, parse_graph  # noqa: E402
+
+
+class _Plan(PatrolStrategy):
+    """Robot i visits ``params['plans'][i]`` in order, then stays on its last vertex."""
+    name = "_PLAN"
+
+    def choose_next(self, now):
+        plan = self.ctx.params["plans"][self.id]
+        k = self.ctx.params.setdefault("_k", {}).get(self.id, 0)
+        self.ctx.params["_k"][self.id] = k + 1
+        return plan[k] if k < len(plan) else plan[-1]
+
+    def on_goal_failed(self, vertex, now):
+        self.next = self.choose_next(now)
+        return self.next
+
+
+def plan_run(monkeypatch, starts, plans, pgraph=None, **kw):
+    """Run _Plan; returns (sim, [(t, robot, message)] of everything put on /results)."""
+    monkeypatch.setitem(REGISTRY, "_PLAN", _Plan)
+    kw.setdefault("duration", 60)
+    cfg = GraphSimConfig(robots=len(starts), alg="_PLAN", params={"plans": plans}, **kw)
+    sim = GraphSimulator(cfg, start_vertices=starts, pgraph=pgraph)
+    rec, publish = [], sim.publish
+    sim.publish = lambda s, d: (rec.append((sim.t, s, list(d))), publish(s, d))
+    sim.run(write=False)
+    return sim, rec
+
+
+def reports(rec, robot):
+    return [(t, d[2]) for t, s, d in rec if s == robot and d[1] == 11]
+
+
+def test_interference_on_an_edge(monkeypatch):
+    # grid, 5.7 m edges: after a round trip each, robot 0 goes 0->1 while robot 1 goes 1->0
+    starts, plans = [0, 1], {0: [5, 0, 1], 1: [2, 1, 0]}
+    sim, rec = plan_run(monkeypatch, starts, plans)
+    hits = [(t, s) for t, s, d in rec if d[1] == 12]
+    assert [s for _, s in hits] == [1] and sim.monitor.interferences == 1
+    (t_hit, _), = hits
+    r0, r1 = reports(rec, 0), reports(rec, 1)
+    d0, d1 = r0[0][0], r1[0][0]                      # start delays
+    # head-on: the gap closes at 2 m/s from 5.7 m; the detection happens mid-edge
+    assert 11.4 + max(d0, d1) < t_hit < 11.4 + min(d0, d1) + 3.7 / 2 + 0.2 + 1e-9
+    # robot 1 stood still 3 s, then finished the same edge; robot 0 went on
+    assert dict((v, t) for t, v in r1[3:4])[0] == pytest.approx(d1 + 17.1 + 3.0, abs=1e-6)
+    assert r0[3] == (pytest.approx(d0 + 17.1, abs=1e-6), 1)
+    off, rec_off = plan_run(monkeypatch, starts, plans, interference=False)
+    assert off.monitor.interferences == 0
+    assert reports(rec_off, 1)[3][0] == pytest.approx(d1 + 17.1, abs=1e-6)
+
+
+def test_interference_at_a_vertex(monkeypatch):
+    # both reach vertex 1 at about the same time, one from above, one from the side
+    sim, rec = plan_run(monkeypatch, [0, 6], {0: [5, 0, 1, 2], 1: [11, 6, 1, 0]})
+    hits = [t for t, s, d in rec if d[1] == 12]
+    assert [s for t, s, d in rec if d[1] == 12] == [1]
+    assert 11.4 < hits[0] < 17.1 + 1.0
+    # detected within 2 m of each other, both close to vertex 1 (each < 2 m away from it)
+    r0 = dict((v, t) for t, v in reports(rec, 0))
+    assert abs(hits[0] - r0[1]) < 2.0 + 0.2
+
+
+def test_unreachable_goal_fails_like_navigation(monkeypatch):
+    # 0 -- 1 (10 m), 2 isolated: a goal to 2 fails, is resent 3 times, then abandoned
+    text = ("3 100 100 0.1 0 0\n"
+            "0 10 10 1 1 E 100\n"
+            "1 110 10 1 0 W 100\n"
+            "2 50 90 0\n")
+    g = PatrolGraph(parse_graph(text))
+    sim, rec = plan_run(monkeypatch, [0], {0: [2, 1, 0]}, pgraph=g, map="grid", duration=40)
+    r = reports(rec, 0)
+    d0 = r[0][0]
+    assert [v for _, v in r[:3]] == [0, 1, 0]
+    assert 2 not in [v for _, v in r]
+    # 4 attempts, each failing at once and followed by the 1 s back-up, then 10 m at 1 m/s
+    assert r[1][0] == pytest.approx(d0 + 4 * 1.0 + 10.0, abs=1e-6)
+
+
+def test_goal_fail_probability(monkeypatch, tmp_path):
+    from patrolling_sim import graph_sim
+    count = {"goal": 0, "backup": 0}
+    send_goal = graph_sim._Robot.send_goal
+
+    def counting_send_goal(robot, vertex, seq):
+        count["goal"] += 1
+        send_goal(robot, vertex, seq)
+    monkeypatch.setattr(graph_sim._Robot, "send_goal", counting_send_goal)
+    monkeypatch.setattr(graph_sim._Robot, "backup",
+                        lambda robot: count.__setitem__("backup", count["backup"] + 1))
+    kw = dict(map="grid", robots=2, alg="CR", duration=600, seed=3, interference=False)
+    ok = GraphSimulator(GraphSimConfig(**kw)).run(write=False)
+    assert count["backup"] == 0
+    bad = GraphSimulator(GraphSimConfig(goal_fail=0.3, **kw)).run(write=False)
+    assert bad.total_visits < ok.total_visits
+    count.update(goal=0, backup=0)
+    again = GraphSimulator(GraphSimConfig(goal_fail=0.3, **kw)).run(write=False)
+    assert 0.2 < count["backup"] / count["goal"] < 0.4       # each goal fails with p = 0.3
+    assert (bad.total_visits, bad.global_avg) == (again.total_visits, again.global_avg)
+    with pytest.raises(PatrolInputError, match="--goal-fail"):
+        GraphSimConfig(goal_fail=1.0, **kw).validate()
+    with pytest.raises(PatrolInputError, match="--travel"):
+        GraphSimConfig(travel="teleport", **kw).validate()
+
+
+def test_euclidean_travel_is_a_straight_line(monkeypatch):
+    # grid 0 -> 6 is diagonal: 2 edges (11.4 m) along the graph, 8.06 m in a straight line
+    for travel, metres in (("graph", 11.4), ("euclidean", (2 * 5.7 ** 2) ** 0.5)):
+        sim, rec = plan_run(monkeypatch, [0], {0: [6, 0]}, travel=travel, duration=30)
+        r = reports(rec, 0)
+        assert r[1][1] == 6 and r[1][0] - r[0][0] == pytest.approx(metres, abs=1e-6)
+
+
+def test_deterministic_with_interference_and_failures(tmp_path):
+    kw = dict(map="cumberland", robots=6, alg="SEBS", duration=900, seed=2, goal_fail=0.05,
+              comm_delay=0.3, loss=0.1)
+    a, sa = run(tmp_path / "a", **kw)
+    b, sb = run(tmp_path / "b", **kw)
+    assert sa.interferences > 0
+    assert rows(a.prefix) == rows(b.prefix)

@@ -445,6 +445,13 @@ def main(argv=None):
         ap.add_argument("--comm-delay", type=float, default=0.0, help="message delay (s)")
         ap.add_argument("--loss", type=float, default=0.0, help="message loss rate [0, 1)")
         ap.add_argument("--initpos", default="default", help="initial poses variant")
+        ap.add_argument("--goal-fail", type=float, default=0.0,
+                        help="probability that a navigation goal fails on the way [0, 1)")
+        ap.add_argument("--interference", choices=("on", "off"), default="on",
+                        help="robots closer than 2 m interfere (default on)")
+        ap.add_argument("--travel", choices=TRAVEL_MODES, default="graph",
+                        help="graph: along shortest graph paths; euclidean: straight line "
+                             "to the goal vertex (default graph)")
         ap.add_argument("--results-dir", default="results")
         ap.add_argument("--repeat", type=int, default=1,
                         help="run this many times with seeds seed, seed+1, ...")
@@ -457,7 +464,8 @@ def main(argv=None):
             cfg = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
                                  cycles=a.cycles, seed=a.seed + k, speed=a.speed, gwait=a.gwait,
                                  comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
-                                 results_dir=a.results_dir)
+                                 results_dir=a.results_dir, goal_fail=a.goal_fail,
+                                 interference=a.interference == "on", travel=a.travel)
             t0 = time.monotonic()
             stats, prefix = run_graph_experiment(cfg, log=None if a.quiet else print)
             print(f"{cfg.alg} on {paths.map_name(cfg.map)} with {cfg.robots} robot(s), seed "

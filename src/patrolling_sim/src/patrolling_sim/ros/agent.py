@@ -1,25 +1,14 @@
-"""The PatrolAgent node: one robot's life cycle around a patrolling strategy
-(patrolling_sim_facts.md sections 2.3-2.8).
+"""The PatrolAgent node: ROS glue around :class:`patrolling_sim.agent_core.PatrolAgentCore`,
+the one implementation of a robot's life cycle (see ``docs/protocol.md``).
 
-The node is event driven: every callback (``/results``, ``/positions``, move_base
-transitions and feedback, timers) takes ``self.lock``, updates the state and returns; waits
-(goal wait, interference pause, back-up manoeuvre, communication delay, auction deadlines)
-are one-shot timers on ROS time, never sleeps inside a callback.
-
-Life cycle:
-    1. load the graph, read ``/initial_pos``, start vertex = nearest vertex (|dx|+|dy|);
-    2. wait for ``robot_i/move_base`` (logging every 5 s), then announce ``[i,10,1]`` on
-       ``/results`` every 2 s until the monitor's GO ``[-1,10,100]``;
-    3. after GO and a random U(0,1) s delay: clear costmaps, ``strategy.start``, report the
-       start vertex ``[i,11,start]``, send the first goal;
-    4. on SUCCEEDED: wait ``/goal_reached_wait``, ``strategy.on_arrival``, report
-       ``[i,11,v]``, send the next goal; on a failure not caused by our own cancel: back-up,
-       clear costmaps, resend the same goal (at most 3 times), then
-       ``strategy.on_goal_failed``;
-    5. ends on the monitor's END ``[-1,10,999]`` or on shutdown (SIGINT).
+This module only connects the core to ROS: the ``robot_i/move_base`` action client (goals,
+feedback, outcomes), ``/results`` and ``/positions``, one-shot rospy timers on ROS time,
+the back-up twists on ``robot_i/cmd_vel`` and the ``clear_costmaps`` service. Every callback
+takes ``self.lock`` and hands the event to the core; nothing blocks inside a callback.
+Start-up: load the graph, read ``/initial_pos`` (start vertex = nearest vertex, |dx|+|dy|),
+wait for ``robot_i/move_base`` (logging every 5 s), then the core announces and waits for GO.
 """
 import math
-import random
 import re
 import threading
 
@@ -33,20 +22,12 @@ from std_msgs.msg import Int16MultiArray
 from std_srvs.srv import Empty
 
 from .. import algorithms, paths
-from ..algorithms.base import (INT16_MAX, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED,
-                               Driver, StrategyContext)
+from ..agent_core import Effects, build_agent
+from ..algorithms.base import INT16_MAX
 from ..errors import PatrolInputError
 from ..graph import PatrolGraph, load_graph
 
-MONITOR_ID = -1
-GO = 100
-END = 999
-ANNOUNCE_PERIOD = 2.0          # s between [i,10,1] announcements
 SERVER_LOG_PERIOD = 5.0        # s between "waiting for move_base" log lines
-MAX_RESENDS = 3                # resends of a failed goal before on_goal_failed
-INTERFERENCE_DIST = 2.0        # m
-INTERFERENCE_PERIOD = 10.0     # s between two detections of the same robot
-INTERFERENCE_PAUSE = 3.0       # s stopped after a detection
 INT16_MIN = -32768
 
 _ROBOT_FRAME = re.compile(r"robot_(\d+)(?:/|$)")
@@ -92,54 +73,7 @@ def start_vertex_from(graph, initial_pos, robot_id):
     return graph.nearest_vertex(x, y), (x, y)
 
 
-def load_registry():
-    """Import every module of :mod:`patrolling_sim.algorithms` so that each registers its
-    strategy; returns the registry (short name -> class)."""
-    import importlib
-    import pkgutil
-    for mod in pkgutil.iter_modules(algorithms.__path__):
-        if mod.name != "base" and not mod.name.startswith("_"):
-            try:
-                importlib.import_module(f"{algorithms.__name__}.{mod.name}")
-            except ImportError as e:
-                rospy.logwarn("algorithm module %s not loaded: %s", mod.name, e)
-    return algorithms.REGISTRY
-
-
-def make_strategy(name, ctx):
-    """Create the strategy registered as ``name`` (the registry is the only source, so a
-    user-written strategy class only has to register itself)."""
-    registry = load_registry()
-    if name not in registry:
-        known = ", ".join(sorted(registry)) or "none"
-        raise AgentError(f"~algorithm: unknown algorithm '{name}' (known: {known})")
-    create = getattr(algorithms, "create", None)
-    try:
-        return create(name, ctx) if create else registry[name](ctx)
-    except PatrolInputError as e:
-        raise AgentError(str(e))
-
-
-class RosDriver(Driver):
-    """The :class:`Driver` a strategy sees inside the agent node."""
-
-    def __init__(self, agent):
-        self.agent = agent
-
-    def now(self):
-        return rospy.get_time()
-
-    def send(self, data):
-        self.agent.send_algorithm_message(list(data))
-
-    def call_later(self, delay, fn):
-        self.agent.call_later(delay, fn)
-
-    def redirect(self, vertex):
-        self.agent.redirect(vertex)
-
-
-class PatrolAgent:
+class PatrolAgent(Effects):
     """One robot. Construct inside an initialised rospy node, then :meth:`run`."""
 
     def __init__(self, map_arg, robot_id, algorithm, team_size=None, seed=None, params=None):
@@ -169,39 +103,29 @@ class PatrolAgent:
         if self.team_size < 1 or self.id >= self.team_size:
             raise AgentError(f"robot id {self.id} is outside a team of {self.team_size}")
 
-        self.goal_wait = self._float_param("/goal_reached_wait", 0.0, minimum=0.0)
-        self.comm_delay = self._float_param("/communication_delay", 0.0, minimum=0.0)
-        self.loss_rate = self._float_param("/lost_message_rate", 0.0, minimum=0.0)
-        if self.loss_rate > 1.0:
-            raise AgentError(f"/lost_message_rate must be in [0, 1], got {self.loss_rate}")
-
-        seed = self.id if seed is None else int(seed)
-        # separate generators: message loss and start jitter never perturb decisions
-        self.loss_rng = random.Random(seed * 7919 + 1)
-        self.jitter_rng = random.Random(seed * 7919 + 2)
+        goal_wait = self._float_param("/goal_reached_wait", 0.0, minimum=0.0)
+        comm_delay = self._float_param("/communication_delay", 0.0, minimum=0.0)
+        loss = self._float_param("/lost_message_rate", 0.0, minimum=0.0)
+        if loss > 1.0:
+            raise AgentError(f"/lost_message_rate must be in [0, 1], got {loss}")
+        if algorithm not in algorithms.REGISTRY:
+            raise AgentError(f"~algorithm: unknown algorithm '{algorithm}' (known: "
+                             f"{', '.join(algorithms.names()) or 'none'})")
 
         self.lock = threading.RLock()
-        self.driver = RosDriver(self)
-        ctx = StrategyContext(graph=self.graph, robot_id=self.id, team_size=self.team_size,
-                              map_name=self.map_name, rng=random.Random(seed),
-                              driver=self.driver, params=dict(params or {}),
-                              start_position=tuple(self.start_xy))
-        self.strategy = make_strategy(algorithm, ctx)
-
-        # state
-        self.phase = "init"            # init, ready, starting, patrol, ended
-        self.started = False
-        self.pending_msgs = []         # algorithm messages received between GO and start
-        self.target = None             # vertex of the active (or paused) goal
-        self.gh = None                 # current ClientGoalHandle
-        self.token = 0                 # bumps on every send/cancel: stale callbacks ignored
-        self.resends = 0
-        self.busy = False              # waiting (goal wait / back-up / interference pause)
-        self.own_pos = tuple(self.start_xy)
-        self.team_pos = {}             # robot id -> (x, y)
-        self.last_interference = -1e9
+        self.gh = None                 # ClientGoalHandle of the active goal
         self.timers = set()
         self.clamp_warned = False
+        self.announce_timer = None
+        try:
+            self.core = build_agent(self, self.graph, self.id, self.team_size, self.map_name,
+                                    algorithm, self.start_vertex, self.start_xy,
+                                    seed=self.id if seed is None else int(seed),
+                                    params=params, goal_wait=goal_wait,
+                                    comm_delay=comm_delay, loss=loss)
+        except PatrolInputError as e:
+            raise AgentError(str(e))
+        self.strategy = self.core.strategy
 
         ns = f"robot_{self.id}"
         self.results_pub = rospy.Publisher("/results", Int16MultiArray, queue_size=100)
@@ -214,7 +138,6 @@ class PatrolAgent:
         rospy.Subscriber("/results", Int16MultiArray, self._on_results, queue_size=100)
         rospy.Subscriber("/positions", Odometry, self._on_positions, queue_size=10)
 
-    # -- helpers -------------------------------------------------------------------------
     @staticmethod
     def _float_param(name, default, minimum=None):
         raw = rospy.get_param(name, default)
@@ -226,6 +149,16 @@ class PatrolAgent:
             raise AgentError(f"{name} must be >= {minimum}, got {raw!r}")
         return val
 
+    # -- Effects: what the core asks of ROS -------------------------------------------------
+    def now(self):
+        return rospy.get_time()
+
+    def log(self, text):
+        rospy.loginfo("%s", text)
+
+    def end(self):
+        rospy.signal_shutdown("monitor END")
+
     def call_later(self, delay, fn):
         """Run ``fn()`` (under the lock) after ``delay`` s of ROS time, without blocking."""
         holder = {}
@@ -233,7 +166,7 @@ class PatrolAgent:
         def fire(_event):
             with self.lock:           # the creator holds the lock until holder is filled
                 self.timers.discard(holder.get("t"))
-                if rospy.is_shutdown() or self.phase == "ended":
+                if rospy.is_shutdown():
                     return
                 try:
                     fn()
@@ -255,19 +188,27 @@ class PatrolAgent:
                           data[1] if len(data) > 1 else "?")
         self.results_pub.publish(Int16MultiArray(data=data))
 
-    def send_algorithm_message(self, data):
-        """Driver.send: types 10/11/12 go out at once; algorithm messages are dropped with
-        probability /lost_message_rate and delayed by /communication_delay."""
-        if len(data) > 1 and data[1] in (MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE):
-            self.publish(data)
-            return
-        if self.loss_rate > 0 and self.loss_rng.random() < self.loss_rate:
-            rospy.logdebug("robot %d: message %s lost", self.id, data[:3])
-            return
-        if self.comm_delay > 0.001:
-            self.call_later(self.comm_delay, lambda: self.publish(data))
-        else:
-            self.publish(data)
+    def send_goal(self, vertex, seq):
+        """A move_base goal to ``vertex`` (replaces the active goal: a self-cancel)."""
+        self.cancel_goal()
+        goal = MoveBaseGoal()
+        goal.target_pose.header.frame_id = "map"
+        goal.target_pose.header.stamp = rospy.Time.now()
+        x, y = self.graph.pos[vertex]
+        goal.target_pose.pose.position.x = float(x)
+        goal.target_pose.pose.position.y = float(y)
+        goal.target_pose.pose.orientation.w = 1.0
+        self.gh = self.client.send_goal(
+            goal, transition_cb=lambda gh: self._on_transition(gh, seq),
+            feedback_cb=lambda gh, fb: self._on_feedback(fb, seq))
+
+    def cancel_goal(self):
+        gh, self.gh = self.gh, None
+        if gh is not None:
+            try:
+                gh.cancel()
+            except Exception as e:
+                rospy.logdebug("robot %d: cancel failed: %s", self.id, e)
 
     def clear_costmaps(self):
         """Call robot_i/move_base/clear_costmaps if it exists, in a background thread."""
@@ -279,13 +220,24 @@ class PatrolAgent:
                 rospy.logdebug("robot %d: no %s", self.id, self.clear_name)
         threading.Thread(target=work, daemon=True).start()
 
+    def backup(self):
+        """Reverse at 0.1 m/s, after 0.2 s rotate at 0.5 rad/s, stop after about 1 s."""
+        def twist(lin, ang):
+            t = Twist()
+            t.linear.x = lin
+            t.angular.z = ang
+            return t
+        self.cmd_pub.publish(twist(-0.1, 0.0))
+        self.call_later(0.2, lambda: self.cmd_pub.publish(twist(0.0, 0.5)))
+        self.call_later(0.95, lambda: self.cmd_pub.publish(twist(0.0, 0.0)))
+
     # -- start-up ------------------------------------------------------------------------
     def wait_for_server(self):
-        name = self.server_name
-        while not rospy.is_shutdown() and self.phase != "ended":
+        while not rospy.is_shutdown() and self.core.phase != "ended":
             if self.client.wait_for_server(rospy.Duration(SERVER_LOG_PERIOD)):
                 return True
-            rospy.loginfo("robot %d: waiting for the %s action server...", self.id, name)
+            rospy.loginfo("robot %d: waiting for the %s action server...", self.id,
+                          self.server_name)
         return False
 
     def run(self):
@@ -296,32 +248,22 @@ class PatrolAgent:
         return 0
 
     def start(self):
-        """Wait for ``robot_i/move_base``, then announce ``[i,10,1]`` every 2 s until GO
-        (callbacks do the rest). Returns False if the node shut down meanwhile."""
+        """Wait for ``robot_i/move_base``, then let the core announce until GO (callbacks do
+        the rest). Returns False if the node shut down meanwhile."""
         if self.id == 0 or not rospy.has_param("/algorithm_params"):
             rospy.set_param("/algorithm_params", str(self.strategy.algorithm_params or ""))
         if not self.wait_for_server():
             return False
-        with self.lock:
-            if self.phase == "init":
-                self.phase = "ready"
         rospy.loginfo("robot %d: move_base found; start vertex %d; announcing", self.id,
                       self.start_vertex)
-        self._announce(None)
-        self.announce_timer = rospy.Timer(rospy.Duration(ANNOUNCE_PERIOD), self._announce)
+        with self.lock:
+            self.core.ready()
         return True
-
-    def _announce(self, _event):
-        if self.phase == "ready":
-            self.publish([self.id, MSG_INIT, 1])
-        elif getattr(self, "announce_timer", None) is not None:
-            self.announce_timer.shutdown()
 
     def shutdown(self):
         with self.lock:
-            self.phase = "ended"
+            self.core.shutdown()
             gh, self.gh = self.gh, None
-            self.token += 1
         for t in list(self.timers):
             t.shutdown()
         if gh is not None:
@@ -330,28 +272,10 @@ class PatrolAgent:
             except Exception:
                 pass
 
-    # -- /results and /positions ----------------------------------------------------------
+    # -- ROS callbacks -> core ---------------------------------------------------------------
     def _on_results(self, msg):
-        data = list(msg.data)
-        if len(data) < 2 or data[0] == self.id:
-            return
         with self.lock:
-            if data[0] == MONITOR_ID and data[1] == MSG_INIT and len(data) > 2:
-                if data[2] == GO and self.phase in ("init", "ready"):
-                    self.phase = "starting"
-                    delay = self.jitter_rng.uniform(0.0, 1.0)
-                    rospy.loginfo("robot %d: GO received, starting in %.2f s", self.id, delay)
-                    self.call_later(delay, self._begin)
-                elif data[2] == END:
-                    rospy.loginfo("robot %d: END received from the monitor", self.id)
-                    self.phase = "ended"
-                    rospy.signal_shutdown("monitor END")
-                return
-            if data[1] >= 30 and self.phase in ("starting", "patrol"):
-                if self.started:
-                    self.strategy.on_message(data, rospy.get_time())
-                else:
-                    self.pending_msgs.append(data)
+            self.core.on_results(list(msg.data))
 
     def _on_positions(self, msg):
         k = parse_robot_frame(msg.header.frame_id)
@@ -359,142 +283,23 @@ class PatrolAgent:
             return
         p = msg.pose.pose.position
         with self.lock:
-            self.team_pos[k] = (p.x, p.y)
+            self.core.on_position(k, p.x, p.y)
 
-    # -- patrol loop ----------------------------------------------------------------------
-    def _begin(self):
-        now = rospy.get_time()
-        self.clear_costmaps()
-        self.strategy.start(self.start_vertex, now)
-        self.started = True
-        self.phase = "patrol"
-        pending, self.pending_msgs = self.pending_msgs, []
-        for data in pending:
-            self.strategy.on_message(data, now)
-        nxt = self.strategy.next_vertex(now)
-        self.publish([self.id, MSG_TARGET_REACHED, self.start_vertex])
-        self.strategy.send_results(now)
-        self._go_next(nxt)
-
-    def _go_next(self, v):
-        if v is None:
-            # the strategy has not decided yet (e.g. waiting for an auction): ask again soon
-            self.call_later(0.5, lambda: self.target is None and self._go_next(
-                self.strategy.next_vertex(rospy.get_time())))
-            self.target = None
-            return
-        self.resends = 0
-        self.send_goal(int(v))
-
-    def send_goal(self, v):
-        """Send a move_base goal to vertex ``v`` (replaces any current goal)."""
-        if self.phase == "ended":
-            return
-        if self.gh is not None:
-            self._cancel_current()
-        self.token += 1
-        token = self.token
-        self.target = v
-        self.busy = False
-        goal = MoveBaseGoal()
-        goal.target_pose.header.frame_id = "map"
-        goal.target_pose.header.stamp = rospy.Time.now()
-        x, y = self.graph.pos[v]
-        goal.target_pose.pose.position.x = float(x)
-        goal.target_pose.pose.position.y = float(y)
-        goal.target_pose.pose.orientation.w = 1.0
-        self.gh = self.client.send_goal(
-            goal,
-            transition_cb=lambda gh: self._on_transition(gh, token),
-            feedback_cb=lambda gh, fb: self._on_feedback(fb, token))
-
-    def _cancel_current(self):
-        """Self-cancel: the done callback of the cancelled goal is ignored (no back-up)."""
-        gh, self.gh = self.gh, None
-        self.token += 1
-        if gh is not None:
-            try:
-                gh.cancel()
-            except Exception as e:
-                rospy.logdebug("robot %d: cancel failed: %s", self.id, e)
-
-    def redirect(self, vertex):
-        """Driver.redirect: abandon the current goal, head to ``vertex``."""
-        with self.lock:
-            if self.phase != "patrol":
-                return
-            self.resends = 0
-            self.send_goal(int(vertex))
-
-    def _on_transition(self, gh, token):
+    def _on_transition(self, gh, seq):
         if gh.get_comm_state() != actionlib.CommState.DONE:
             return
         with self.lock:
-            if token != self.token or self.phase != "patrol":
+            if seq != self.core.seq:
                 return
             status = gh.get_goal_status()
-            self.gh = None
-            v = self.target
-            if status == GoalStatus.SUCCEEDED:
-                self.busy = True
-                if self.goal_wait > 0:
-                    self.call_later(self.goal_wait, lambda: self._arrived(v, token))
-                else:
-                    self._arrived(v, token)
-            else:
-                rospy.logwarn("robot %d: goal to vertex %d failed (status %d)", self.id, v,
-                              status)
-                self._goal_failed(v, token)
+            if gh is self.gh:
+                self.gh = None
+            if status != GoalStatus.SUCCEEDED:
+                rospy.logwarn("robot %d: goal to vertex %s failed (status %d)", self.id,
+                              self.core.target, status)
+            self.core.on_goal_result(seq, status == GoalStatus.SUCCEEDED)
 
-    def _arrived(self, v, token):
-        if token != self.token or self.phase != "patrol":
-            return
-        now = rospy.get_time()
-        self.strategy.on_arrival(v, now)
-        if token != self.token:        # the strategy redirected us meanwhile
-            self.publish([self.id, MSG_TARGET_REACHED, v])
-            return
-        nxt = self.strategy.next_vertex(now)
-        self.publish([self.id, MSG_TARGET_REACHED, v])
-        self.strategy.send_results(now)
-        if token != self.token:
-            return
-        self._go_next(nxt)
-
-    def _goal_failed(self, v, token):
-        """Back-up (short reverse + rotate), clear costmaps, then resend or give up."""
-        self.busy = True
-        self._backup()
-        self.clear_costmaps()
-
-        def after_backup():
-            if token != self.token or self.phase != "patrol":
-                return
-            if self.resends < MAX_RESENDS:
-                self.resends += 1
-                rospy.loginfo("robot %d: resending goal %d (%d/%d)", self.id, v, self.resends,
-                              MAX_RESENDS)
-                resends = self.resends
-                self.send_goal(v)
-                self.resends = resends
-            else:
-                nxt = self.strategy.on_goal_failed(v, rospy.get_time())
-                rospy.loginfo("robot %d: giving up on vertex %d, going to %s", self.id, v, nxt)
-                self._go_next(nxt)
-
-        self.call_later(1.0, after_backup)
-
-    def _backup(self):
-        def twist(lin, ang):
-            t = Twist()
-            t.linear.x = lin
-            t.angular.z = ang
-            return t
-        self.cmd_pub.publish(twist(-0.1, 0.0))
-        self.call_later(0.2, lambda: self.cmd_pub.publish(twist(0.0, 0.5)))
-        self.call_later(0.95, lambda: self.cmd_pub.publish(twist(0.0, 0.0)))
-
-    def _on_feedback(self, fb, token):
+    def _on_feedback(self, fb, seq):
         p = fb.base_position.pose.position
         odom = Odometry()
         odom.header.frame_id = self.frame_tag
@@ -502,35 +307,7 @@ class PatrolAgent:
         odom.pose.pose.position.y = p.y
         self.positions_pub.publish(odom)
         with self.lock:
-            if token != self.token or self.phase != "patrol":
-                return
-            self.own_pos = (p.x, p.y)
-            now = rospy.get_time()
-            if now - self.last_interference < INTERFERENCE_PERIOD:
-                return
-            for j, (x, y) in self.team_pos.items():
-                if j < self.id and (x - p.x) ** 2 + (y - p.y) ** 2 <= INTERFERENCE_DIST ** 2:
-                    self._interference(j, now)
-                    break
-
-    def _interference(self, other, now):
-        """Report [i,12], stop for 3 s (timer), then resend the same goal."""
-        self.last_interference = now
-        v = self.target
-        rospy.loginfo("robot %d: interference with robot %d", self.id, other)
-        self.publish([self.id, MSG_INTERFERENCE])
-        self._cancel_current()
-        self.busy = True
-        token = self.token
-        resends = self.resends
-
-        def resume():
-            if token != self.token or self.phase != "patrol":
-                return
-            self.send_goal(v)
-            self.resends = resends
-
-        self.call_later(INTERFERENCE_PAUSE, resume)
+            self.core.on_feedback(seq, p.x, p.y)
 
 
 def _optional_int_param(name):
@@ -547,7 +324,7 @@ def _optional_int_param(name):
 def _read_common_params():
     """(algorithm, team_size, seed, params) from the node's private parameters."""
     if not rospy.has_param("~algorithm"):
-        known = ", ".join(sorted(load_registry()))
+        known = ", ".join(algorithms.names())
         raise AgentError(f"~algorithm is required (known: {known})")
     alg = str(rospy.get_param("~algorithm"))
     team_size = _optional_int_param("~team_size")
