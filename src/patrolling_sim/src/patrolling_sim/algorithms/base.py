@@ -3,22 +3,30 @@ protocol through which it acts on the world.
 
 A *strategy* holds one robot's knowledge (graph, idleness tables, what it heard from
 teammates) and makes that robot's decisions. It never talks to ROS or to a simulator
-directly: everything goes through its *driver*, so the same strategy code runs in the ROS
-PatrolAgent node and in the graph-level discrete-event simulator.
+directly: everything goes through its *driver*, the robot's life cycle
+(:class:`patrolling_sim.agent_core.PatrolAgentCore`), which is the same object in the ROS
+PatrolAgent node and in the graph-level simulator.
 
-Life cycle, as driven by both drivers::
+Hooks, in the order the life cycle calls them (``docs/protocol.md``, section 3)::
 
     s = Strategy(ctx)                      # ctx: StrategyContext (graph, ids, rng, params)
-    s.start(start_vertex, now)             # once, at GO; the robot stands on start_vertex
-    v = s.next_vertex(now)                 # where to go first
-    ...robot travels, arrives at v...
-    s.on_arrival(v, now)                   # tables updated (no messages here)
-    v = s.next_vertex(now)                 # decide
-    ...driver reports the visit [id,11,v] on /results...
+    s.start(start_vertex, now)             # once, at the end of the start delay after GO
+    v = s.next_vertex(now)                 # decide the first goal
+    ...life cycle reports [id,11,start_vertex] on /results...
     s.send_results(now)                    # share: the algorithm's own message, if any
-    ...driver sends the goal v...
-    s.on_message(data, now)                # any time: a /results message from a teammate
-    s.on_goal_failed(v, now) -> vertex     # navigation gave up on v: choose another
+    ...goal v sent; the robot travels, arrives, waits /goal_reached_wait...
+    s.on_arrival(v, now)                   # tables updated with the visit (no messages)
+    v = s.next_vertex(now)                 # decide
+    ...life cycle reports [id,11,v]...
+    s.send_results(now)                    # share
+    ...goal v sent...
+    s.on_message(data, now)                # any time after GO: a teammate's message (>= 30)
+    s.on_goal_failed(v, now) -> vertex     # navigation failed on v 4 times: choose another
+
+``next_vertex`` may return None ("not decided yet", e.g. waiting for an auction): the life
+cycle asks again every 0.5 s, and the report, ``send_results`` and the goal wait for the
+decision. ``driver.redirect(v)`` abandons the current goal for v (honoured while moving,
+paused, backing up or deciding; dropped during the goal wait).
 
 Time ``now`` is simulated seconds (ROS time in ROS mode). Decisions must depend only on
 the strategy's own state, its inputs and ``ctx.rng`` (a seeded ``random.Random``), so that
@@ -48,8 +56,8 @@ INT16_CAP = 32000
 
 
 class Driver:
-    """What a strategy may ask of the world. Implemented by the ROS agent node and by the
-    graph-level simulator; tests use small fakes."""
+    """What a strategy may ask of the world. Implemented by the life cycle
+    (:class:`patrolling_sim.agent_core.PatrolAgentCore`) in both modes; tests use fakes."""
 
     def now(self) -> float:
         """Current time (s)."""
@@ -57,7 +65,8 @@ class Driver:
 
     def send(self, data: List[int]) -> None:
         """Broadcast an algorithm message ``[own_id, type, ...]`` on /results. The driver
-        applies the communication delay and loss; payloads must fit int16."""
+        applies the communication delay and loss (``docs/protocol.md`` section 6); payloads
+        must fit int16."""
         raise NotImplementedError
 
     def call_later(self, delay: float, fn: Callable[[], None]) -> None:
