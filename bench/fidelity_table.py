@@ -14,7 +14,7 @@ own result files under tests/unit/data/original_runs/.
 Usage:
     bench/fidelity_table.py maps [--src DIR] [--maps ...] [--robots 4] [--seeds 5]
                                  [--duration 3600] [--json out.json]
-    bench/fidelity_table.py grid [--seeds 5] [--json out.json]
+    bench/fidelity_table.py grid [--seeds 5] [--json out.json] [--ros-json ros.json]
 """
 import argparse
 import json
@@ -70,7 +70,12 @@ def run_grid(a):
     sys.path.insert(0, os.path.join(ROOT, "tests", "unit"))
     _import(a.src)
     import fidelity_common as fc  # noqa: E402
-    algs = a.algs or fc.reference_algorithms()
+    algs = a.algs or fc.reference_algorithms() + [
+        x for x in fc.names() if x not in fc.reference_algorithms()]
+    a.ros = {}
+    if a.ros_json:
+        with open(a.ros_json, encoding="utf-8") as f:
+            a.ros = {k: f"{v[0]:.1f} / {v[1]:.1f} / {v[2]:.0f}" for k, v in json.load(f).items()}
     raw = {}
     starts = fc.simulator(algs[0], 0).start_vertices
     print(f"grid, {fc.ROBOTS} robots at vertices {starts}, {fc.reference_duration():.0f} s "
@@ -83,10 +88,14 @@ def run_grid(a):
         ref = fc.reference_figures(alg)
         ours = [fc.run_ours(alg, seed) for seed in range(a.seeds)]
         raw[alg] = dict(original=ref, ours=ours)
-        mo = [statistics.mean(r[k] for r in ref) for k in range(3)]
         mg = [statistics.mean(r[k] for r in ours) for k in range(3)]
-        print(f"| {alg} | {mo[0]:.1f} / {mo[1]:.1f} / {mo[2]:.0f} | "
-              f"{mg[0]:.1f} / {mg[1]:.1f} / {mg[2]:.0f} | pending |", flush=True)
+        if ref:
+            mo = [statistics.mean(r[k] for r in ref) for k in range(3)]
+            orig = f"{mo[0]:.1f} / {mo[1]:.1f} / {mo[2]:.0f}"
+        else:
+            orig = "(ours only)"
+        print(f"| {alg} | {orig} | {mg[0]:.1f} / {mg[1]:.1f} / {mg[2]:.0f} | "
+              f"{a.ros.get(alg, 'not measured')} |", flush=True)
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:
             json.dump(raw, f)
@@ -104,6 +113,8 @@ def main():
     sub.choices["maps"].add_argument("--maps", nargs="+",
                                      default=["cumberland", "DIAG_labs", "broughton"])
     sub.choices["maps"].add_argument("--robots", type=int, default=4)
+    sub.choices["grid"].add_argument(
+        "--ros-json", help="ROS-mode figures {alg: [avg, max, visits]} for the last column")
     sub.choices["maps"].add_argument("--duration", type=float, default=3600.0)
     a = ap.parse_args()
     if a.seeds < 1:

@@ -373,3 +373,30 @@ def test_dta_estimates_stay_per_agent():
     b.on_message(msg, 1.0)
     a.gi.values[3] = 77.0
     assert b.gi.values[3] == pytest.approx(0.5) and np.all(a.gi.values[:3] == 0.5)
+
+
+def test_msp_follows_its_file_from_the_second_entry_without_realigning():
+    """grid_4_2 begins at vertex 15 while robot 2 starts on 20: the original still heads
+    for the file's second entry, then the next ones, wrapping to the second."""
+    from patrolling_sim import paths
+    from patrolling_sim.msp_routes import load_route
+    g = fc.simulator("CR", 0).g
+    route = load_route(paths.msp_route_file("grid", 4, 2), g)
+    s, _ = make("MSP", g, rid=2, n=4, mapname="grid")
+    s.start(20, 0.0)
+    goals = [s.next_vertex(0.0)] + [s.choose_next(0.0) for _ in range(2 * len(route))]
+    assert route[0] != 20 and goals[:len(route) - 1] == route[1:]
+    assert goals[len(route) - 1:2 * len(route) - 2] == route[1:]
+
+
+def test_msp_bal_is_its_own_algorithm_on_computed_regions():
+    g = fc.simulator("CR", 0).g
+    starts = [0, 13, 20, 11]
+    covered = set()
+    for r, v in enumerate(starts):
+        s, _ = make("MSP_BAL", g, rid=r, n=4, mapname="grid")
+        s.ctx.params["start_vertices"] = starts
+        s.start(v, 0.0)
+        assert s.route_source == "computed" and s.route[0] == s.route[-1]
+        covered |= set(s.route)
+    assert covered == set(range(g.n))

@@ -7,7 +7,8 @@ graph (grid's are), otherwise (stale files, or no file for this team size) the p
 routes are computed here: :func:`patrolling_sim.routes.balanced_partition` plus
 :func:`patrolling_sim.routes.closed_route` per region. All robots compute the same partition;
 regions are matched to robots by start position when the team's start vertices are known
-(``ctx.params['start_vertices']``), else region i goes to robot i.
+(``ctx.params['start_vertices']``), else region i goes to robot i. ``MSP_BAL``
+(:mod:`~patrolling_sim.algorithms.msp_bal`) always uses the computed partition.
 """
 import logging
 import os
@@ -16,8 +17,8 @@ from .. import paths
 from ..errors import PatrolInputError
 from ..msp_routes import load_route
 from ..routes import balanced_partition, closed_route
-from .base import register
-from .cgg import RouteFollower
+from .base import PatrolStrategy, register
+from .cgg import RouteFollower, rotate_to
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +47,12 @@ def msp_route(pgraph, map_name, team_size, robot_id, start_vertices=None, route_
             if route_file:
                 raise
             log.info("MSP: %s; computing the partition instead", e)
+    return msp_balanced_route(pgraph, team_size, robot_id, start_vertices)
+
+
+def msp_balanced_route(pgraph, team_size, robot_id, start_vertices=None):
+    """(route, "computed"): this project's balanced partition, region matched to the robot
+    by start position when the team's start vertices are known (else region ``robot_id``)."""
     regions = balanced_partition(pgraph, team_size)
     if start_vertices and len(start_vertices) == team_size:
         idx = assign_regions(pgraph, regions, start_vertices)[robot_id]
@@ -54,24 +61,53 @@ def msp_route(pgraph, map_name, team_size, robot_id, start_vertices=None, route_
     return closed_route(pgraph, regions[idx]), "computed"
 
 
+def start_in_region(s, start_vertex):
+    """Rotate a route follower's closed route ``s.route`` to begin at the region's vertex
+    closest to ``start_vertex`` when the robot stands outside its region."""
+    if start_vertex not in s.route:
+        D = s.graph.dist
+        cyc = s.route[:-1]
+        k = min(range(len(cyc)), key=lambda j: (D[start_vertex, cyc[j]], j))
+        cyc = cyc[k:] + cyc[:k]
+        s.route = cyc + cyc[:1]
+        s.k = 0                         # current is off the route: the first choice is cyc[0]
+
+
 @register
 class MultilevelSubgraphPatrolling(RouteFollower):
+    """The original's MSP: robot i follows ``MSP/<map>/<map>_<N>_<i>`` (or the
+    ``msp_route`` file given): first goal the file's second entry, then the next ones,
+    wrapping to the second entry after the last -- wherever the robot starts (it is not
+    realigned to its start vertex). Where no valid file exists (the original cannot run
+    there) the route of ``MSP_BAL`` is used instead, from the robot's own vertex (logged)."""
     name = "MSP"
 
-    def build_route(self, start_vertex):
+    def start(self, start_vertex, now):
+        PatrolStrategy.start(self, start_vertex, now)
         p = self.ctx.params
         route, self.route_source = msp_route(
             self.graph, self.ctx.map_name, self.ctx.team_size, self.id,
             start_vertices=p.get("start_vertices"), route_file=p.get("msp_route"))
-        return route
+        if self.route_source == "computed":
+            log.info("MSP: no valid route file for %s with %d robots; robot %d follows the "
+                     "computed balanced partition (as MSP_BAL)", self.ctx.map_name,
+                     self.ctx.team_size, self.id)
+            self.route = rotate_to(route, start_vertex)
+            self.k = 0
+            start_in_region(self, start_vertex)
+        else:
+            self.route = route
+            self.i = 0                  # index of the entry last sent as a goal
 
-    def start(self, start_vertex, now):
-        super().start(start_vertex, now)
-        if start_vertex not in self.route:
-            # begin at the region's vertex closest to where the robot stands
-            D = self.graph.dist
-            cyc = self.route[:-1]
-            k = min(range(len(cyc)), key=lambda j: (D[start_vertex, cyc[j]], j))
-            cyc = cyc[k:] + cyc[:k]
-            self.route = cyc + cyc[:1]
-            self.k = 0                  # current is off the route: the first choice is cyc[0]
+    def choose_next(self, now):
+        if self.route_source == "computed":
+            return super().choose_next(now)
+        self.i += 1
+        if self.i >= len(self.route):
+            self.i = 1
+        return self.route[self.i]
+
+    def on_goal_failed(self, vertex, now):
+        if self.route_source == "computed":
+            return super().on_goal_failed(vertex, now)
+        return PatrolStrategy.on_goal_failed(self, vertex, now)
