@@ -21,7 +21,6 @@
 All are deterministic: every robot computes the same result from the same graph.
 """
 import random
-from functools import lru_cache
 from typing import List, Optional, Sequence
 
 import numpy as np
@@ -219,11 +218,14 @@ def _closed_route(pgraph, verts, seed):
 def _subgraph_metric(pgraph, verts):
     if len(verts) == pgraph.n:
         return pgraph.dist, pgraph.path
-    return _sub_metric_cached(id(pgraph), pgraph, verts)
+    # cached on the graph object itself (no module-level state shared between graphs)
+    cache = pgraph.__dict__.setdefault("_sub_metric_cache", {})
+    if verts not in cache:
+        cache[verts] = _sub_metric(pgraph, verts)
+    return cache[verts]
 
 
-@lru_cache(maxsize=64)
-def _sub_metric_cached(_key, pgraph, verts):
+def _sub_metric(pgraph, verts):
     import networkx as nx
     allowed = set(verts)
     G = nx.DiGraph()
