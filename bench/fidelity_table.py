@@ -15,9 +15,11 @@ Usage:
     bench/fidelity_table.py maps [--src DIR] [--maps ...] [--robots 4] [--seeds 5]
                                  [--duration 3600] [--json out.json]
     bench/fidelity_table.py grid [--seeds 5] [--json out.json] [--ros-json ros.json]
+    bench/fidelity_table.py diff BEFORE.json AFTER.json [--threshold 0.05]
 """
 import argparse
 import json
+import math
 import os
 import statistics
 import sys
@@ -27,6 +29,9 @@ DEFAULT_SRC = os.path.join(ROOT, "src", "patrolling_sim", "src")
 
 
 def _import(src):
+    if not os.path.isdir(os.path.join(src, "..", "..", "..", "maps")):
+        # a source tree outside a checkout: read maps and params from this one
+        os.environ.setdefault("PATROLLING_SIM_DATA", ROOT)
     sys.path.insert(0, os.path.abspath(src))
     from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E402
     from patrolling_sim import algorithms  # noqa: E402
@@ -45,7 +50,8 @@ def run_maps(a):
         set(algorithms.REGISTRY) - set(original_names(algorithms)))
     raw = {}
     print(f"Graph mode, {a.robots} robots, {a.duration:.0f} s, seeds 0..{a.seeds - 1}, "
-          f"shipped start poses; source {os.path.relpath(a.src, ROOT)}; mean over seeds.\n")
+          f"shipped start poses, interference {'on' if a.interference else 'off'} (where the "
+          f"simulator models it); source {a.src}; mean over seeds.\n")
     print("| alg | " + " | ".join(f"{m} avg / max / visits" for m in a.maps) + " |")
     print("|---|" + "---|" * len(a.maps))
     for alg in algs:
@@ -53,8 +59,11 @@ def run_maps(a):
         for m in a.maps:
             runs = []
             for seed in range(a.seeds):
+                kw = {}
+                if "interference" in GraphSimConfig.__dataclass_fields__:
+                    kw["interference"] = a.interference
                 cfg = GraphSimConfig(map=m, robots=a.robots, alg=alg, duration=a.duration,
-                                     seed=seed)
+                                     seed=seed, **kw)
                 s = GraphSimulator(cfg).run(write=False)
                 runs.append((s.global_avg, s.global_max, s.total_visits))
             raw.setdefault(alg, {})[m] = runs
@@ -101,6 +110,33 @@ def run_grid(a):
             json.dump(raw, f)
 
 
+def run_diff(a):
+    """Changes between two ``maps --json`` files: every mean that moved by more than
+    ``--threshold`` (relative)."""
+    with open(a.before, encoding="utf-8") as f:
+        before = json.load(f)["runs"]
+    with open(a.after, encoding="utf-8") as f:
+        after = json.load(f)["runs"]
+    names = ("avg", "max", "visits")
+    print("| alg | map | metric | before | after | change | change / SE |")
+    print("|---|---|---|---|---|---|---|")
+    for alg in after:
+        if alg not in before:
+            continue
+        for m in after[alg]:
+            for k, metric in enumerate(names):
+                b = statistics.mean(r[k] for r in before[alg][m])
+                x = statistics.mean(r[k] for r in after[alg][m])
+                if b and abs(x - b) > a.threshold * abs(b):
+                    # standard error of the difference of the two means (seed-to-seed spread)
+                    se = math.sqrt(sum(statistics.variance([r[k] for r in runs]) / len(runs)
+                                       for runs in (before[alg][m], after[alg][m])
+                                       if len(runs) > 1))
+                    z = f"{(x - b) / se:+.1f}" if se > 0 else "exact"
+                    print(f"| {alg} | {m} | {metric} | {b:.1f} | {x:.1f} | {(x - b) / b:+.0%} "
+                          f"| {z} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="mode", required=True)
@@ -116,7 +152,16 @@ def main():
     sub.choices["grid"].add_argument(
         "--ros-json", help="ROS-mode figures {alg: [avg, max, visits]} for the last column")
     sub.choices["maps"].add_argument("--duration", type=float, default=3600.0)
+    sub.choices["maps"].add_argument("--interference", action="store_true",
+                                     help="model robot-robot interference (default off, as "
+                                          "the graph mode before issue 12)")
+    d = sub.add_parser("diff", help="changes > threshold between two maps --json files")
+    d.add_argument("before")
+    d.add_argument("after")
+    d.add_argument("--threshold", type=float, default=0.05)
     a = ap.parse_args()
+    if a.mode == "diff":
+        return run_diff(a)
     if a.seeds < 1:
         ap.error(f"argument --seeds: must be >= 1, got {a.seeds}")
     return run_maps(a) if a.mode == "maps" else run_grid(a)
