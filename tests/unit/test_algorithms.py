@@ -1,4 +1,4 @@
-"""The 11 strategies: rules of patrolling_sim_facts.md section 6, messages, determinism."""
+"""The strategies: rules (docs/fidelity.md), messages, determinism, routes and partitions."""
 import math
 import random
 
