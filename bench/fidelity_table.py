@@ -75,6 +75,20 @@ def run_maps(a):
             json.dump(dict(robots=a.robots, duration=a.duration, seeds=a.seeds, runs=raw), f)
 
 
+def _ros_cell(v):
+    """A ROS-mode cell from ``[avg, max, visits]`` or from bench/fidelity_ros.py's JSON entry
+    (``{"ours": [{"figures": [avg, max, visits]}, ...], "failed": [...]}``)."""
+    if isinstance(v, dict):
+        runs = [r["figures"] for r in v.get("ours", [])]
+        if not runs:
+            return "no complete run"
+        v = [statistics.mean(r[k] for r in runs) for k in range(3)]
+        note = f" ({len(runs)} run{'s' if len(runs) > 1 else ''})"
+    else:
+        note = ""
+    return f"{v[0]:.1f} / {v[1]:.1f} / {v[2]:.0f}{note}"
+
+
 def run_grid(a):
     sys.path.insert(0, os.path.join(ROOT, "tests", "unit"))
     _import(a.src)
@@ -84,7 +98,7 @@ def run_grid(a):
     a.ros = {}
     if a.ros_json:
         with open(a.ros_json, encoding="utf-8") as f:
-            a.ros = {k: f"{v[0]:.1f} / {v[1]:.1f} / {v[2]:.0f}" for k, v in json.load(f).items()}
+            a.ros = {k: _ros_cell(v) for k, v in json.load(f).items()}
     raw = {}
     starts = fc.simulator(algs[0], 0).start_vertices
     print(f"grid, {fc.ROBOTS} robots at vertices {starts}, {fc.reference_duration():.0f} s "
