@@ -21,6 +21,10 @@ can be compared with the original's on equal terms, and a cheap world for ROS-le
 - with ``~feedback`` true, move_base feedback (``base_position`` in ``map``) with each
   odometry message; the reference world sent none, so the agents never published
   /positions and never detected interference;
+- the clock waits for an agent's reaction: when a robot arrived ``/goal_reached_wait`` +
+  ``~reaction_time`` sim s ago and has no new goal yet, the clock stops until the goal
+  comes, for at most ``~reaction_wait`` wall s per arrival (then the agent is taken to wait
+  on purpose), so slow agents on a loaded machine do not lose sim time;
 - ``~status`` (std_msgs/String, JSON) about twice a wall second: sim time, achieved pace
   (``rtf``), GO seen, goals / successes / preemptions per robot.
 
@@ -31,7 +35,7 @@ turnaround, which costs patrol time in this world as in the reference runs).
 
 Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20),
 ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
-~publish_tf (true).
+~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.05 wall s; 0 = never hold).
 """
 import json
 import math
@@ -42,6 +46,11 @@ import time
 
 EPS = 1e-9
 STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5 Hz)
+#: sim s an agent gets to send its next goal after an arrival (plus /goal_reached_wait)
+#: before the clock waits for it: the reference runs' median turnaround (4 steps of 20 ms)
+REACTION_TIME = 0.08
+#: wall s the clock waits at most per arrival (then the agent is taken to wait on purpose)
+REACTION_WAIT = 0.05
 
 
 class StraightLineWorld:
@@ -127,6 +136,8 @@ class RobotServer:
         self.gh = None                  # the goal being executed (owned under node.lock)
         self.goals = self.succeeded = self.preempted = 0
         self.done_at = None             # sim time of the last SUCCEEDED
+        self.hold_since = None          # wall time the clock started waiting for this robot
+        self.released = False           # waited long enough: no more holds until next goal
         self.turnaround = []            # sim s from a SUCCEEDED to the next goal
         ns = f"robot_{i}"
         self.odom_pub = rospy.Publisher(f"{ns}/odom", Odometry, queue_size=1)
@@ -150,6 +161,8 @@ class RobotServer:
             if self.done_at is not None:
                 self.turnaround.append(self.node.world.time - self.done_at)
                 self.done_at = None
+            self.hold_since, self.released = None, False
+            self.node.goal_arrived.notify_all()
             if old is not None:
                 self.preempted += 1
         if old is not None:
@@ -200,6 +213,13 @@ class WorldNode:
         self.feedback = bool(rospy.get_param("~feedback", False))
         self.publish_tf = bool(rospy.get_param("~publish_tf", True))
         self.lock = threading.Lock()
+        self.goal_arrived = threading.Condition(self.lock)
+        gwait = float(rospy.get_param("/goal_reached_wait", 0.0))
+        self.hold_after = gwait + float(rospy.get_param("~reaction_time", REACTION_TIME))
+        self.hold_limit = float(rospy.get_param("~reaction_wait", REACTION_WAIT))
+        self.holds = self.releases = 0
+        if self.hold_after < 0 or self.hold_limit < 0:
+            raise ValueError("~reaction_time and ~reaction_wait must be >= 0")
         self.go_at = None
         self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=1)
         self.clock = Clock()
@@ -262,6 +282,8 @@ class WorldNode:
         last_status = 0.0
         rtf = 0.0
         while not rospy.is_shutdown():
+            if self.hold_limit > 0 and self._hold_for_reactions():
+                next_wall = time.monotonic()       # the clock stood still: no catch-up
             with self.lock:
                 arrived = self.world.advance()
                 t = rospy.Time.from_sec(self.world.time)
@@ -302,6 +324,34 @@ class WorldNode:
                 self.status_pub.publish(json.dumps(self.status(rtf)))
         self.log_summary()
 
+    def _hold_for_reactions(self):
+        """Stop the clock while a robot that arrived ``hold_after`` sim s ago has no new goal
+        yet, for at most ``hold_limit`` wall s per arrival (after that the robot is taken to
+        be waiting on purpose: an auction, an algorithm's pause). Returns True if it held."""
+        held = False
+        with self.lock:
+            while not self.rospy.is_shutdown():
+                now = time.monotonic()
+                waiting = [r for r in self.robots if r.done_at is not None and not r.released
+                           and self.world.time >= r.done_at + self.hold_after - EPS]
+                if not waiting:
+                    return held
+                deadline = None
+                for r in waiting:
+                    if r.hold_since is None:
+                        r.hold_since = now
+                        self.holds += 1
+                    if now - r.hold_since >= self.hold_limit:
+                        r.released = True
+                        self.releases += 1
+                    else:
+                        end = r.hold_since + self.hold_limit
+                        deadline = end if deadline is None else min(deadline, end)
+                if deadline is not None:
+                    held = True
+                    self.goal_arrived.wait(max(0.0, deadline - now))
+        return held
+
     def _publish_odometry(self, stamp):
         from move_base_msgs.msg import MoveBaseFeedback
         with self.lock:
@@ -333,7 +383,9 @@ class WorldNode:
         turn = [x for r in self.robots for x in r.turnaround]
         s = self.status(0.0)
         line = (f"abstract_world: end at sim {s['sim_time']:.2f} s, GO at {s['go_at']}; goals "
-                f"{s['goals']} succeeded {s['succeeded']} preempted {s['preempted']}")
+                f"{s['goals']} succeeded {s['succeeded']} preempted {s['preempted']}; clock "
+                f"held for a reaction {self.holds} times, {self.releases} of them given up "
+                f"after {self.hold_limit:g} wall s")
         if turn:
             line += (f"; turnaround SUCCEEDED->next goal (sim s): n {len(turn)} mean "
                      f"{statistics.mean(turn):.3f} median {statistics.median(turn):.3f} "
