@@ -73,7 +73,7 @@ def main():
         print(f"| {alg} | {ref[0]:.1f} / {ref[1]:.1f} / {ref[2]:.0f} | "
               f"{ours[0]:.1f} / {ours[1]:.1f} / {ours[2]:.0f} | "
               f"{pct(ours[0], ref[0])} / {pct(ours[1], ref[1])} / {pct(ours[2], ref[2])} | "
-"              f"{turn_s} |" + (f" ({'; '.join(notes)})" if notes else ""),
+              f"{turn_s} |" + (f" ({'; '.join(notes)})" if notes else ""),
               flush=True)
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:
