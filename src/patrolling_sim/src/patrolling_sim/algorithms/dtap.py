@@ -177,8 +177,7 @@ class DTASSIPart(PatrolStrategy):
     def send_results(self, now):
         """As the original: the idleness message, then (the goal being on its way) the
         auction for the target after the next one."""
-        self.send(MSG_DTA_IDLENESS, *[int16_payload(x) for x in 10.0 * self.gi.advance(now)],
-                  self.next)
+        self.send(MSG_DTA_IDLENESS, *self.gi.encode(now), self.next)
         self.won = None
         self._start_auction(self.next, now)
 
