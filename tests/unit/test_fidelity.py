@@ -400,3 +400,18 @@ def test_msp_bal_is_its_own_algorithm_on_computed_regions():
         assert s.route_source == "computed" and s.route[0] == s.route[-1]
         covered |= set(s.route)
     assert covered == set(range(g.n))
+
+
+def test_dtap_keeps_its_bids_after_visits():
+    """The original never forgets a recorded bid (a visit does not reset it) and waits
+    min(timeout, 1 + 0.1 |tasks|) s per auction round."""
+    s, d = make("DTAP", STAR, n=2, driver=WaitingDriver())
+    s.start(0, 0.0)
+    s.next_vertex(0.0)
+    d.advance(1.0)
+    first = s.next
+    assert s.best_bid[first][1] == 0 and s.tasks == [first]
+    s.send_results(1.0)
+    s.on_arrival(first, 2.0)
+    assert s.best_bid[first][1] == 0 and first in s.tasks      # kept after the visit
+    assert d.timers and d.timers[0][0] == pytest.approx(1.0 + 1.0 + 0.1 * 1)
