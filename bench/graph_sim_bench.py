@@ -7,7 +7,8 @@ subprocess (so peak RSS is that run's own), no result files written. Prints a Ma
 
 Usage:
     bench/graph_sim_bench.py [--maps grid cumberland broughton] [--robots 1 4 12]
-                             [--algs ...] [--duration 3600] [--out docs/benchmarks/graph_sim.md]
+                             [--algs ...] [--duration 3600] [--interference on|off]
+                             [--out docs/benchmarks/graph_sim.md]
 """
 import argparse
 import datetime
@@ -25,7 +26,7 @@ CHILD = r"""
 import json, resource, sys, time
 sys.path.insert(0, %r)
 from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator
-cfg = GraphSimConfig(map=%r, robots=%d, alg=%r, duration=%f, seed=1)
+cfg = GraphSimConfig(map=%r, robots=%d, alg=%r, duration=%f, seed=1, **%r)
 t0 = time.perf_counter()
 sim = GraphSimulator(cfg)
 t1 = time.perf_counter()
@@ -44,6 +45,8 @@ def main():
     ap.add_argument("--algs", nargs="+", default=ALGS)
     ap.add_argument("--duration", type=float, default=3600.0)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--interference", choices=("on", "off"), default=None,
+                    help="graph mode's interference model (default: GraphSimConfig's, on)")
     a = ap.parse_args()
     src = os.path.join(ROOT, "src", "patrolling_sim", "src")
     lines = [f"Graph mode, {a.duration:.0f} s simulated per run, seed 1, no files written. "
@@ -57,12 +60,13 @@ def main():
              "peak RSS (MB) | visits | avg idl (s) | max idl (s) |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     print("\n".join(lines), flush=True)
+    extra = {} if a.interference is None else {"interference": a.interference == "on"}
     for m in a.maps:
         for n in a.robots:
             for alg in a.algs:
                 t0 = time.perf_counter()
                 out = subprocess.run([sys.executable, "-c",
-                                      CHILD % (src, m, n, alg, a.duration)],
+                                      CHILD % (src, m, n, alg, a.duration, extra)],
                                      capture_output=True, text=True, timeout=900)
                 proc_wall = time.perf_counter() - t0
                 if out.returncode != 0:

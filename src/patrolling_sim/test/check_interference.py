@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""rostest checker for the interference behaviour (facts 2.6), non-blocking version.
+"""rostest checker for the interference behaviour (docs/protocol.md section 5),
+non-blocking version.
 
 The checker plays robot 0 on /positions: it always claims to stand where robot 1 (an agent)
 last said it was. Robot 1 (the higher id) must then report [1,12], cancel its goal, resend

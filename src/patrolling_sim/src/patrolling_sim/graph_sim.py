@@ -26,15 +26,16 @@ Deterministic: the same inputs and seed give the same files (apart from wall-clo
 import bisect
 import heapq
 import itertools
-import os
 import math
+import os
 import random
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence
 
 from . import paths
-from .agent_core import GO, MONITOR_ID, Effects, build_agent
+from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID, Effects,
+                         build_agent)
 from .algorithms import REGISTRY
 from .algorithms.base import MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from .errors import PatrolInputError
@@ -157,6 +158,7 @@ class _Robot(Effects):
             cum.append(total)
         self.pieces, self.cum, self.depart = pieces, cum, sim.t
         self.duration = max(MIN_TRIP, total / sim.cfg.speed)
+        sim.wake()
         if sim.cfg.goal_fail > 0 and sim.rng.random() < sim.cfg.goal_fail:
             sim.schedule(sim.t + sim.rng.random() * self.duration,
                          lambda: self._failed(token, seq))
@@ -217,13 +219,15 @@ class _Robot(Effects):
         return x, y, loc
 
     def _stop(self):
-        """Stand still where the robot is now; pending arrival/failure events go stale."""
+        """Stand still where the robot is now; pending arrival/failure events go stale.
+        The robot's last published position is where it stopped."""
         if self.pieces is None:
             return
         x, y, self.loc = self.position(self.sim.t)
         self.xy = (x, y)
         self.pieces = self.cum = None
         self.token += 1
+        self.sim.stood(self)                       # last feedback: where it stopped
 
     def _arrived(self, token, seq):
         if token != self.token:
@@ -233,6 +237,7 @@ class _Robot(Effects):
         self.token += 1
         self.loc = (v, v, 0.0)
         self.xy = tuple(float(c) for c in self.sim.g.pos[v])
+        self.sim.stood(self)                       # last feedback: on the vertex
         self.last_vertex = v
         self.core.on_goal_result(seq, True)
 
@@ -267,6 +272,12 @@ class GraphSimulator:
         self.robots = [_Robot(self, i, v) for i, v in enumerate(self.start_vertices)]
         #: positions robots have published while moving (shared by all cores)
         self.team_pos = {}
+        #: skip feedback work that cannot find an interference (same results, faster)
+        self.skip_idle_ticks = True
+        self._cur = [r.xy for r in self.robots]      # where each robot is (at the last tick)
+        self._tick = math.inf
+        self._bound_wait = 0                          # ticks until the skip bound is computed
+        self._bound_backoff = 1
         self.prefix = prefix
         self.log = log or (lambda s: None)
         self.termination = None
@@ -308,19 +319,88 @@ class GraphSimulator:
                 if r.id != sender:
                     self.schedule(self.t, lambda r=r: r.core.on_results(data))
 
-    def _feedback(self):
-        """Navigation feedback of every moving robot: publish positions, then let each core
-        evaluate interference (as move_base feedback does, every FEEDBACK_PERIOD s)."""
+    def stood(self, robot):
+        """``robot`` stopped at ``robot.xy``: that is its last published position."""
+        self.team_pos[robot.id] = self._cur[robot.id] = robot.xy
+
+    def wake(self):
+        """A robot started a trip: the next feedback tick must not be later than the next
+        one of the FEEDBACK_PERIOD lattice."""
+        if not self.cfg.interference:
+            return
+        k = int(self.t / FEEDBACK_PERIOD) + 1
+        if k < self._tick:
+            self._tick = k
+            self.schedule(k * FEEDBACK_PERIOD, lambda: self._feedback(k))
+
+    def _feedback(self, k):
+        """Navigation feedback at tick ``k`` (time k * FEEDBACK_PERIOD, move_base's 5 Hz):
+        every moving robot publishes its position, then evaluates interference.
+
+        Only the work that can find something is done: a robot in its 10 s quiet period,
+        or farther than INTERFERENCE_DIST from every published position of a lower id, would
+        find nothing, so its core is not asked; and since no robot moves faster than
+        ``speed``, no pair with a moving robot comes within INTERFERENCE_DIST for
+        (d - INTERFERENCE_DIST) / (closing speed) s, so those ticks are skipped (a robot
+        starting a trip wakes the next tick). Results are the same as with every tick
+        simulated and every core asked (``skip_idle_ticks = False``, checked by a test)."""
+        if k != self._tick:
+            return                               # superseded by an earlier wake
         t = self.t
-        moving = [r for r in self.robots if r.pieces is not None]
-        for r in moving:
-            x, y, _ = r.position(t)
-            self.team_pos[r.id] = (x, y)
-        for r in moving:
+        cur, team = self._cur, self.team_pos
+        moving = []
+        for r in self.robots:
             if r.pieces is not None:
-                x, y = self.team_pos[r.id]
-                r.core.on_feedback(r.seq, x, y)
-        self.schedule(t + FEEDBACK_PERIOD, self._feedback)
+                x, y, _ = r.position(t)
+                cur[r.id] = team[r.id] = (x, y)
+                moving.append(r)
+        lazy = self.skip_idle_ticks
+        d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
+        for r in moving:
+            core = r.core
+            x, y = cur[r.id]
+            if lazy:
+                if t - core.last_interference < INTERFERENCE_PERIOD:
+                    continue
+                for j in range(r.id):
+                    p = team.get(j)
+                    if p is not None and (p[0] - x) ** 2 + (p[1] - y) ** 2 <= d2max:
+                        break
+                else:
+                    continue
+            core.on_feedback(r.seq, x, y)
+        moving = [r.id for r in moving if r.pieces is not None]
+        if not moving:
+            self._tick = math.inf                # nobody moves: the next trip wakes us
+            return
+        skip = 1
+        self._bound_wait -= 1
+        if lazy and self._bound_wait <= 0:
+            # closest (moving, moving) and (moving, standing) pairs
+            is_moving = [r.pieces is not None for r in self.robots]
+            mm = ms = math.inf
+            for i in moving:
+                x, y = cur[i]
+                for j, (qx, qy) in enumerate(cur):
+                    if j != i:
+                        d2 = (qx - x) ** 2 + (qy - y) ** 2
+                        if is_moving[j]:
+                            if d2 < mm:
+                                mm = d2
+                        elif d2 < ms:
+                            ms = d2
+            v = self.cfg.speed
+            horizon = min((math.sqrt(mm) - INTERFERENCE_DIST) / (2 * v),
+                          (math.sqrt(ms) - INTERFERENCE_DIST) / v)
+            if horizon == math.inf:              # a team of one
+                self._tick = math.inf
+                return
+            skip = max(1, int(horizon / FEEDBACK_PERIOD))
+            # robots close together: the bound will not help for a while, ask less often
+            self._bound_backoff = 1 if skip > 1 else min(16, 2 * self._bound_backoff)
+            self._bound_wait = self._bound_backoff
+        self._tick = k + skip
+        self.schedule(self._tick * FEEDBACK_PERIOD, lambda: self._feedback(k + skip))
 
     # -- monitor ----------------------------------------------------------------------------
     def _report(self, rid, v):
@@ -374,8 +454,7 @@ class GraphSimulator:
             for r in self.robots:
                 r.core.on_results([MONITOR_ID, MSG_INIT, GO])
             self.schedule(TIMERESULTS_PERIOD, self._timeresults)
-            if cfg.interference:
-                self.schedule(FEEDBACK_PERIOD, self._feedback)
+            self._tick = math.inf                # feedback ticks start with the first trip
             end = cfg.duration if cfg.duration > 0 else float("inf")
             self.termination = "TIMEOUT"
             while self._events:
