@@ -29,8 +29,6 @@ METRIC = {"avg": 0, "max": 1, "visits": 2}
 KNOWN = {
     ("RAND", "avg"): "the original reseeds rand() from the wall clock before every draw, so "
                      "decisions within one wall second repeat; ours is a seeded uniform choice",
-    ("DTAP", "max"): "our 5 seeds' maxima (111-155 s) lie above the original's two runs "
-                     "(89, 106 s); cause not found, see docs/fidelity.md",
 }
 
 
@@ -295,10 +293,14 @@ def test_dtap_arriving_during_an_auction_waits_for_it():
     s.send_results(1.0)                                 # report done: next auction runs
     s.on_arrival(first, 1.5)
     assert s.next_vertex(1.5) is None                   # still auctioning
+    assert s.current == 0                               # the visit is not taken in yet
     d.advance(2.0)
     assert d.redirects == [first]                      # 1.1 s: one task won already
     d.advance(2.2)
     assert d.redirects[-1] == s.next and s.next != first
+    assert s.current == first
+    s.send_results(2.2)                                 # the next auction starts from here:
+    assert s.gi.values[first] == 0.0                    # the reached vertex zeroed
 
 
 def test_dtap_hops_on_the_cost_shortest_path():

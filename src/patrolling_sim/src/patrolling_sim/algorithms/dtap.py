@@ -80,6 +80,7 @@ class DTASSIPart(PatrolStrategy):
         self._token = 0
         self._pending = False       # the life cycle waits for our decision
         self._first = True
+        self._arrival = None        # reached vertex not yet taken into the tables
 
     # -- knowledge --------------------------------------------------------------------------
     def start(self, start_vertex, now):
@@ -159,7 +160,9 @@ class DTASSIPart(PatrolStrategy):
                 self._pending = True
                 return None
             self.auction = None                 # no one waits: decide now
+            self._apply_arrival(now)
             self.won = self.choose_next(now)
+        self._apply_arrival(now)
         return self._take_won(now)
 
     def _take_won(self, now):
@@ -171,8 +174,15 @@ class DTASSIPart(PatrolStrategy):
         return nxt
 
     def on_arrival(self, vertex, now):
-        self._advance(now)                      # zeroes the vertex we leave
-        super().on_arrival(vertex, now)
+        """Kept until the decision: the original updates its tables only when its blocked
+        loop gets to the reached goal, i.e. after the running auction."""
+        self._arrival = vertex
+
+    def _apply_arrival(self, now):
+        if self._arrival is not None:
+            self._advance(now)                  # zeroes the vertex we leave
+            PatrolStrategy.on_arrival(self, self._arrival, now)
+            self._arrival = None
 
     def send_results(self, now):
         """As the original: the idleness message, then (the goal being on its way) the
@@ -213,6 +223,7 @@ class DTASSIPart(PatrolStrategy):
         self.won = v
         if self._pending:
             self._pending = False
+            self._apply_arrival(now)
             self.driver.redirect(self._take_won(now))
 
     def _greedy(self, cv, v, best, now):
