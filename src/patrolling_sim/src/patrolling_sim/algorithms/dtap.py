@@ -205,7 +205,8 @@ class DTASSIPart(PatrolStrategy):
         token = self._token
         self.auction = (token, cv, v)
         self.send(MSG_SSI_TASK_REQUEST, v, int16_payload(b))
-        wait = min(self.p["timeout"], AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * len(self.task_set))
+        wait = min(self.p["timeout"],
+                   AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * len(self.task_set))
         self.driver.call_later(wait, lambda: self._auction_end(token))
 
     def _auction_end(self, token):
