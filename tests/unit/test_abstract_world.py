@@ -1,8 +1,8 @@
-"""The abstract world's motion model (src/patrolling_sim/tools/abstract_world.py) and the
-runner's ``--nav abstract`` launch. No ROS master needed."""
-import importlib.util
+"""The abstract world's motion model (src/patrolling_sim/tools/straight_line_world.py, used
+by tools/abstract_world.py) and the runner's ``--nav abstract`` launch. No ROS master."""
 import math
 import os
+import sys
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -12,10 +12,8 @@ from patrolling_sim.runner.config import ExperimentConfig
 from patrolling_sim.runner.launchgen import generate_launch, status_topic
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-_spec = importlib.util.spec_from_file_location(
-    "abstract_world", os.path.join(ROOT, "src", "patrolling_sim", "tools", "abstract_world.py"))
-aw = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(aw)
+sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "tools"))
+import straight_line_world as aw  # noqa: E402
 
 GRID = 5.7375          # m between neighbouring vertices of grid
 
