@@ -20,11 +20,12 @@ import heapq
 import itertools
 import os
 import random
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence
 
-from . import paths
+from . import paths, run_status, validation
 from .algorithms import REGISTRY, create
 from .algorithms.base import Driver, StrategyContext
 from .errors import PatrolInputError
@@ -73,7 +74,8 @@ class GraphSimConfig:
             raise PatrolInputError(f"argument --comm-delay: must be >= 0, got {self.comm_delay}")
         if not 0 <= self.loss < 1:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
-        paths.map_files(self.map)        # raises a one-line error for an unknown map
+        # the same one-line errors as the experiment runner (patrolling_sim.validation)
+        validation.check_map_files(self.map)
         return self
 
 
@@ -272,10 +274,22 @@ class GraphSimulator:
             return stats
         finally:
             if self.writer:
+                status = self.termination if self.writer.info_written else \
+                    run_status.INTERRUPTED
                 if not self.writer.info_written:     # interrupted: keep what was measured
                     self.writer.write_info(self.monitor.stats(self.t),
-                                           time.monotonic() - self.wall0, "ABORT")
+                                           time.monotonic() - self.wall0, status)
                 self.writer.close()
+                run_status.write_run_yaml(self.prefix, {
+                    "status": status, "reason": {
+                        run_status.TIMEOUT: f"the duration of {cfg.duration:g} sim s was "
+                                            f"reached",
+                        run_status.CYCLES: f"{cfg.cycles} complete patrol cycles done",
+                        run_status.INTERRUPTED: "interrupted before the end"}.get(status, ""),
+                    "culprit": None, "robots": [], "signal": None,
+                    "sim_time": round(self.t, 1),
+                    "wall_time": round(time.monotonic() - self.wall0, 1),
+                    "exit_code": run_status.exit_code_for(status), "written_by": "graph_sim"})
 
 
 def claim_prefix(prefix: str) -> str:
@@ -328,6 +342,15 @@ def main(argv=None):
         setup_logging()
         if a.repeat < 1:
             ap.error(f"argument --repeat: must be >= 1, got {a.repeat}")
+        first = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
+                               cycles=a.cycles, seed=a.seed, speed=a.speed, gwait=a.gwait,
+                               comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
+                               results_dir=a.results_dir).validate()
+        _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos)
+        warning = validation.team_size_warning(first.robots, pgraph.n, paths.map_name(a.map))
+        if warning:
+            print(warning, file=sys.stderr)
+        validation.check_writable_dir(a.results_dir)
         for k in range(a.repeat):
             cfg = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
                                  cycles=a.cycles, seed=a.seed + k, speed=a.speed, gwait=a.gwait,
@@ -335,9 +358,11 @@ def main(argv=None):
                                  results_dir=a.results_dir)
             t0 = time.monotonic()
             stats, prefix = run_graph_experiment(cfg, log=None if a.quiet else print)
+            avg = "-" if stats.global_avg is None else f"{stats.global_avg:.1f} s"
+            mx = "-" if stats.global_max is None else f"{stats.global_max:.1f} s"
             print(f"{cfg.alg} on {paths.map_name(cfg.map)} with {cfg.robots} robot(s), seed "
                   f"{cfg.seed}: {stats.elapsed:.0f} s simulated in {time.monotonic() - t0:.2f} s"
-                  f" | avg idleness {stats.global_avg:.1f} s | max {stats.global_max:.1f} s | "
+                  f" | avg idleness {avg} | max {mx} | "
                   f"cycles {stats.cycles} | visits {stats.total_visits}")
             print(f"results: {prefix}_*")
         return 0
