@@ -155,12 +155,12 @@ class ExperimentConfig:
             raise PatrolInputError("argument --record-period: must be > 0 when recording")
         if not self.initpos:
             self.initpos = "default"
-        validation.check_memory(self.robots, self.processes, self.force)
         if check_start_positions:
             _, pgraph = validation.check_start_positions(self.map, self.robots, self.initpos)
             warning = validation.team_size_warning(self.robots, pgraph.n, self.map_name)
             if warning:
                 log.warning("%s", warning[len("warning: "):])
+        validation.check_memory(self.robots, self.processes, self.force)
         if check_writable:
             check_writable_dir(self.results_dir, "argument --results-dir")
         if self.nav == "ros":
