@@ -256,3 +256,28 @@ def test_killed_runner_leaves_no_process_and_marks_the_run(tmp_path):
     rec = yaml.safe_load(open(prefix + "_run.yaml"))
     assert rec["status"] == "INTERRUPTED" and rec["written_by"] == "monitor"
     assert rec["exit_code"] is None and rec["complete"] is False
+
+
+def test_silent_robot_fails_naming_it(tmp_path):
+    """``--dead-robot-timeout``: robot 1's agent is frozen (SIGSTOP, so its process does not
+    die): robot 1 sends no visit, and after 15 sim s the monitor ends the run with FAIL
+    naming robot 1; the runner exits 1 and records the robot ids."""
+    run = Run(tmp_path, ("--processes", "separate", "--dead-robot-timeout", "15"))
+    run.wait_for("go yes")
+    pid = run.node_pid("patrol_robot1")
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        prefix = run.prefix()
+        t0 = time.monotonic()
+        while not os.path.exists(prefix + "_info.csv") and run.p.poll() is None and \
+                time.monotonic() - t0 < 240:
+            run._read()
+            run.tree.refresh()
+            time.sleep(0.2)
+    finally:
+        os.kill(pid, signal.SIGCONT)      # let it stop with the others
+    rec, prefix = check_end(run, 1, "FAIL")
+    assert rec["robots"] == [1], rec
+    assert "robot(s) 1 sent no visit for 15 sim s" in run.out, run.out[-2000:]
+    info = parse_info_line(open(prefix + "_info.csv").read())
+    assert info["termination"] == "FAIL" and 15.0 <= info["sim_duration"] < 40.0, info
