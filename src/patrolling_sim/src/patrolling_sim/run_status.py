@@ -97,6 +97,12 @@ def read_run_yaml(prefix):
 def set_info_status(prefix, status):
     """Rewrite field 14 (termination) of ``<prefix>_info.csv`` to ``status`` atomically.
     Returns False if there is no well-formed info.csv."""
+    return set_info_field(prefix, 13, status)
+
+
+def set_info_field(prefix, index, value):
+    """Rewrite field ``index`` (0-based) of ``<prefix>_info.csv`` atomically. Returns False
+    if there is no well-formed info.csv."""
     path = prefix + "_info.csv"
     try:
         with open(path, encoding="utf-8") as f:
@@ -106,7 +112,7 @@ def set_info_status(prefix, status):
     fields = line.split(";")
     if len(fields) != 22:
         return False
-    fields[13] = status
+    fields[index] = str(value).replace(";", ",")
     tmp = f"{path}.tmp{os.getpid()}"
     with open(tmp, "w", encoding="utf-8") as f:
         f.write(";".join(fields) + "\n")
