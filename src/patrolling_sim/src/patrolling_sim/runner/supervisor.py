@@ -500,7 +500,9 @@ class Experiment:
             except OSError:
                 pass
             first = self._stop_requested()
-            deadline = time.monotonic() + 20
+            # a user's signal: stop within 10 s (the monitor writes its files on the first
+            # SIGINT at once); otherwise give roslaunch time for an orderly shutdown
+            deadline = time.monotonic() + (6 if _signal_name(first) else 20)
             while proc.poll() is None and time.monotonic() < deadline:
                 try:
                     time.sleep(0.2)
@@ -511,7 +513,7 @@ class Experiment:
                 if first is None and self._stop_requested():
                     first = self._stop_requested()
                     deadline = min(deadline, time.monotonic() + 6)  # stop within 10 s
-        hard = tree.stop(grace=3.0)
+        hard = tree.stop(grace=1.0 if _signal_name(self._stop_requested()) else 3.0)
         if hard:
             self.out(f"warning: killed {len(hard)} process(es) that ignored SIGINT/SIGTERM")
         try:
