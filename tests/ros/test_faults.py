@@ -90,7 +90,7 @@ class Run:
             self._read()
 
     def node_pid(self, name):
-        """Pid of the node ``name`` of this run (``__name:=name`` or, for the master,
+        """Pid of the node ``name`` (``ns/name`` for a namespaced node; ``master`` for
         rosmaster) among the runner's descendants."""
         self.tree.refresh()
         for pid in self.tree.alive():
@@ -99,8 +99,11 @@ class Run:
                     args = f.read().decode(errors="replace").split("\0")
             except OSError:
                 continue
-            if f"__name:={name}" in args or (name == "master" and any(
-                    a.endswith("rosmaster") for a in args)):
+            ns, _, base = name.rpartition("/")
+            if f"__name:={base}" in args and (not ns or any(
+                    a.startswith("__log:=") and f"/{ns}-{base}-" in a for a in args)):
+                return pid          # a namespaced node: roslaunch names its log ns-name-k
+            if name == "master" and any(a.endswith("rosmaster") for a in args):
                 return pid
         pytest.fail(f"no process of node {name} in the run:\n{self.out[-2000:]}")
 
@@ -170,12 +173,12 @@ def check_end(run, code, status, *, culprit=None, robot=None, complete_files=Tru
 @pytest.mark.parametrize("node,extra,culprit,robot", [
     ("stage2d", (), "stage2d", None),
     ("master", (), "master", None),
-    ("robot_nav", (), "robot_0/robot_nav", 0),
+    ("robot_0/robot_nav", (), "robot_0/robot_nav", 0),
     ("patrol_robot1", ("--processes", "separate"), "patrol_robot1", 1),
 ])
 def test_killed_node_ends_the_run_as_crashed(tmp_path, node, extra, culprit, robot):
     run = Run(tmp_path, extra)
-    run.visits()
+    run.wait_for("GO after")        # killed soon after GO: the monitor has results to keep
     pid = run.node_pid(node)
     os.kill(pid, signal.SIGKILL)
     rec, _ = check_end(run, 3, "CRASHED", culprit=culprit, robot=robot)
@@ -186,7 +189,7 @@ def test_killed_node_ends_the_run_as_crashed(tmp_path, node, extra, culprit, rob
 
 def test_killed_monitor_crashed_without_info(tmp_path):
     run = Run(tmp_path)
-    run.visits()
+    run.wait_for("GO after")
     os.kill(run.node_pid("monitor"), signal.SIGKILL)
     rec, prefix = check_end(run, 3, "CRASHED", culprit="monitor", complete_files=False)
     # the monitor had no chance to write info.csv; what it measured is kept
@@ -243,7 +246,7 @@ def test_killed_runner_leaves_no_process_and_marks_the_run(tmp_path):
     """SIGKILL gives the runner no chance: roslaunch gets SIGTERM from the kernel
     (parent-death signal) and stops every node; the monitor marks the run INTERRUPTED."""
     run = Run(tmp_path)
-    run.visits()
+    run.wait_for("GO after")
     assert len(run.tree.alive()) >= 5
     run.p.kill()
     run.finish()
