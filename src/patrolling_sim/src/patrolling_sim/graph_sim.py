@@ -20,6 +20,7 @@ import heapq
 import itertools
 import os
 import random
+import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -340,6 +341,12 @@ def main(argv=None):
         ap.add_argument("--quiet", action="store_true")
         a = ap.parse_args(args)
         setup_logging()
+        got = []
+
+        def on_term(signum, frame):     # SIGTERM ends the run as SIGINT does: files kept
+            got.append(signum)
+            raise KeyboardInterrupt
+        signal.signal(signal.SIGTERM, on_term)
         if a.repeat < 1:
             ap.error(f"argument --repeat: must be >= 1, got {a.repeat}")
         first = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
@@ -364,7 +371,18 @@ def main(argv=None):
             if label != sim.map_name:
                 sim.prefix = claim_prefix(default_prefix(cfg.results_dir, label, cfg.robots,
                                                          cfg.alg))
-            stats = sim.run()
+            try:
+                stats = sim.run()
+            except KeyboardInterrupt:
+                if sim.prefix:
+                    sig = "SIGTERM" if got else "SIGINT"
+                    rec = run_status.read_run_yaml(sim.prefix) or {}
+                    rec.update(signal=sig, exit_code=run_status.exit_code_for(
+                        run_status.INTERRUPTED, sig), reason=f"interrupted by {sig}")
+                    run_status.write_run_yaml(sim.prefix, rec)
+                    print(f"interrupted by {sig}; results: {sim.prefix}_*", file=sys.stderr)
+                return run_status.exit_code_for(run_status.INTERRUPTED,
+                                                "SIGTERM" if got else "SIGINT")
             prefix = sim.prefix
             if label != sim.map_name:
                 run_status.set_info_field(prefix, 0, label)
