@@ -5,7 +5,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -135,34 +134,6 @@ def test_parallel_runs_do_not_mix(tmp_path):
     assert len(ports) == 2
 
 
-def _ignore_sigint():
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def test_ctrl_c_keeps_complete_files(tmp_path):
-    # started with SIGINT ignored, as `cmd &` in a script does: the runner must still obey it
-    p = start(["--map", "grid", "--robots", "2", "--alg", "CR", "--loc", "fake_localization",
-               "--timeout", "0", "--speedup", "3"], tmp_path, preexec_fn=_ignore_sigint)
-    t0 = time.time()
-    seen = ""
-    while time.time() - t0 < 150:               # wait for GO and a few visits
-        line = p.stdout.readline()
-        seen += line
-        if "progress:" in line and "go yes" in line and "visits 0" not in line:
-            break
-    else:
-        os.killpg(p.pid, signal.SIGKILL)
-        pytest.fail("no visits before the deadline:\n" + seen[-2000:])
-    p.send_signal(signal.SIGINT)
-    rc, out = finish(p, 90)
-    out = seen + out
-    assert rc == 130, out[-3000:]
-    (prefix,) = prefixes(tmp_path)
-    info, _ = check_files(prefix)
-    assert info["total_visits"] >= 0 and info["sim_duration"] > 0
-    assert master_ports_closed(out)
-
-
 def test_original_positional_form_with_amcl(tmp_path):
     # MAP NROBOTS INITPOS ALG LOC NAV GWAIT COMMDELAY TERM TIMEOUT [CUSTOM_STAGE] [SPEEDUP]
     p = start(["grid", "2", "default", "CGG", "AMCL", "spqrel_navigation", "0", "0", "xterm",
@@ -200,28 +171,4 @@ def test_bad_arguments_start_nothing(tmp_path):
         assert r.returncode == 2 and "--results-dir" in r.stderr, r.stderr
 
 
-def test_killed_runner_leaves_no_processes(tmp_path):
-    """SIGKILL gives the runner no chance to clean up: roslaunch still gets SIGTERM from the
-    kernel (parent-death signal) and stops every node."""
-    p = start(["--map", "grid", "--robots", "1", "--alg", "CR", "--loc", "fake_localization",
-               "--timeout", "0", "--speedup", "2"], tmp_path)
-    t0 = time.time()
-    seen = ""
-    while time.time() - t0 < 120:
-        line = p.stdout.readline()
-        seen += line
-        if "progress:" in line and "go yes" in line:
-            break
-    else:
-        os.killpg(p.pid, signal.SIGKILL)
-        pytest.fail("no GO before the deadline:\n" + seen[-2000:])
-    assert len(own_processes(str(tmp_path))) >= 5     # roslaunch, master, nodes
-    p.kill()
-    p.communicate()
-    t0 = time.time()
-    while time.time() - t0 < 30 and own_processes(str(tmp_path)):
-        time.sleep(0.5)
-    left = own_processes(str(tmp_path))
-    for pid in left:                                          # do not leak them into CI
-        os.kill(pid, signal.SIGKILL)
-    assert not left, f"{len(left)} processes outlived the killed runner"
+# Ctrl-C, SIGTERM, a killed runner and crashed nodes: tests/ros/test_faults.py

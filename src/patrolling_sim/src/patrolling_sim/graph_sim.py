@@ -29,11 +29,13 @@ import itertools
 import math
 import os
 import random
+import signal
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence
 
-from . import paths
+from . import paths, run_status, validation
 from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID, Effects,
                          build_agent)
 from .algorithms import REGISTRY
@@ -96,7 +98,8 @@ class GraphSimConfig:
         if self.travel not in TRAVEL_MODES:
             raise PatrolInputError(f"argument --travel: must be one of {', '.join(TRAVEL_MODES)}"
                                    f", got '{self.travel}'")
-        paths.map_files(self.map)        # raises a one-line error for an unknown map
+        # the same one-line errors as the experiment runner (patrolling_sim.validation)
+        validation.check_map_files(self.map)
         return self
 
 
@@ -476,10 +479,22 @@ class GraphSimulator:
             return stats
         finally:
             if self.writer:
+                status = self.termination if self.writer.info_written else \
+                    run_status.INTERRUPTED
                 if not self.writer.info_written:     # interrupted: keep what was measured
                     self.writer.write_info(self.monitor.stats(self.t),
-                                           time.monotonic() - self.wall0, "ABORT")
+                                           time.monotonic() - self.wall0, status)
                 self.writer.close()
+                run_status.write_run_yaml(self.prefix, {
+                    "status": status, "reason": {
+                        run_status.TIMEOUT: f"the duration of {cfg.duration:g} sim s was "
+                                            f"reached",
+                        run_status.CYCLES: f"{cfg.cycles} complete patrol cycles done",
+                        run_status.INTERRUPTED: "interrupted before the end"}.get(status, ""),
+                    "culprit": None, "robots": [], "signal": None,
+                    "sim_time": round(self.t, 1),
+                    "wall_time": round(time.monotonic() - self.wall0, 1),
+                    "exit_code": run_status.exit_code_for(status), "written_by": "graph_sim"})
 
 
 def claim_prefix(prefix: str) -> str:
@@ -537,8 +552,23 @@ def main(argv=None):
         ap.add_argument("--quiet", action="store_true")
         a = ap.parse_args(args)
         setup_logging()
+        got = []
+
+        def on_term(signum, frame):     # SIGTERM ends the run as SIGINT does: files kept
+            got.append(signum)
+            raise KeyboardInterrupt
+        signal.signal(signal.SIGTERM, on_term)
         if a.repeat < 1:
             ap.error(f"argument --repeat: must be >= 1, got {a.repeat}")
+        first = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
+                               cycles=a.cycles, seed=a.seed, speed=a.speed, gwait=a.gwait,
+                               comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
+                               results_dir=a.results_dir).validate()
+        _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos)
+        warning = validation.team_size_warning(first.robots, pgraph.n, paths.map_name(a.map))
+        if warning:
+            print(warning, file=sys.stderr)
+        validation.check_writable_dir(a.results_dir)
         for k in range(a.repeat):
             cfg = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
                                  cycles=a.cycles, seed=a.seed + k, speed=a.speed, gwait=a.gwait,
@@ -546,10 +576,33 @@ def main(argv=None):
                                  results_dir=a.results_dir, goal_fail=a.goal_fail,
                                  interference=a.interference == "on", travel=a.travel)
             t0 = time.monotonic()
-            stats, prefix = run_graph_experiment(cfg, log=None if a.quiet else print)
+            sim = GraphSimulator(cfg, log=None if a.quiet else print)
+            # a map that is not a shipped one is filed under a name that cannot collide
+            # with a shipped map (its name + a hash of its files), as in the ROS runner
+            label = validation.result_map_name(cfg.map)
+            if label != sim.map_name:
+                sim.prefix = claim_prefix(default_prefix(cfg.results_dir, label, cfg.robots,
+                                                         cfg.alg))
+            try:
+                stats = sim.run()
+            except KeyboardInterrupt:
+                if sim.prefix:
+                    sig = "SIGTERM" if got else "SIGINT"
+                    rec = run_status.read_run_yaml(sim.prefix) or {}
+                    rec.update(signal=sig, exit_code=run_status.exit_code_for(
+                        run_status.INTERRUPTED, sig), reason=f"interrupted by {sig}")
+                    run_status.write_run_yaml(sim.prefix, rec)
+                    print(f"interrupted by {sig}; results: {sim.prefix}_*", file=sys.stderr)
+                return run_status.exit_code_for(run_status.INTERRUPTED,
+                                                "SIGTERM" if got else "SIGINT")
+            prefix = sim.prefix
+            if label != sim.map_name:
+                run_status.set_info_field(prefix, 0, label)
+            avg = "-" if stats.global_avg is None else f"{stats.global_avg:.1f} s"
+            mx = "-" if stats.global_max is None else f"{stats.global_max:.1f} s"
             print(f"{cfg.alg} on {paths.map_name(cfg.map)} with {cfg.robots} robot(s), seed "
                   f"{cfg.seed}: {stats.elapsed:.0f} s simulated in {time.monotonic() - t0:.2f} s"
-                  f" | avg idleness {stats.global_avg:.1f} s | max {stats.global_max:.1f} s | "
+                  f" | avg idleness {avg} | max {mx} | "
                   f"cycles {stats.cycles} | visits {stats.total_visits}")
             print(f"results: {prefix}_*")
         return 0

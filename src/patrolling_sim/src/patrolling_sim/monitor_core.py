@@ -15,7 +15,9 @@ Definitions (the original's, without its bugs):
 - visit counters start at -1, so a vertex's first visit (including the start-vertex report)
   yields no idleness sample; each later visit samples ``t - last_visit[v]``;
 - complete patrol cycles = min over vertices of the counter (= minimum visit count - 1);
-- global min/avg/SD/max over all samples; SD is the population SD;
+- global min/avg/SD/max over all samples; SD is the population SD; with no sample at all
+  (no vertex visited twice) they are None, written as empty fields (not 0: a run without a
+  measurement has no idleness, not an idleness of 0 s);
 - node level: avg[v] = mean of v's samples (0 if none); worst = max avg[v]; graph avg, graph
   population SD and a true median of avg[v] over all vertices;
 - interference rate = interferences after GO / elapsed sim time * 60 (per minute);
@@ -57,10 +59,10 @@ class Stats:
     elapsed: float
     cycles: int
     n_samples: int
-    global_min: float
-    global_avg: float
-    global_sd: float
-    global_max: float
+    global_min: Optional[float]     # None: no idleness sample
+    global_avg: Optional[float]
+    global_sd: Optional[float]
+    global_max: Optional[float]
     worst_avg: float
     graph_avg: float
     graph_median: float
@@ -182,10 +184,11 @@ class MonitorCore:
             elapsed=elapsed,
             cycles=self.cycles,
             n_samples=self.n_samples,
-            global_min=self.min_idl if self.n_samples else 0.0,
-            global_avg=self._s1 / self.n_samples if self.n_samples else 0.0,
-            global_sd=population_sd(self.n_samples, self._s1, self._s2),
-            global_max=self.max_idl if self.n_samples else 0.0,
+            global_min=self.min_idl if self.n_samples else None,
+            global_avg=self._s1 / self.n_samples if self.n_samples else None,
+            global_sd=population_sd(self.n_samples, self._s1, self._s2)
+            if self.n_samples else None,
+            global_max=self.max_idl if self.n_samples else None,
             worst_avg=max(avgs),
             graph_avg=g_avg,
             graph_median=float(statistics.median(avgs)),

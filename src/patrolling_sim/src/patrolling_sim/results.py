@@ -21,7 +21,8 @@ from .monitor_core import Stats
 
 IDLENESS_HEADER = "Time;Robot;Node;Idleness;Interferences"
 TIMERESULTS_HEADER = "Time;Idleness min;Idleness avg;Idleness stddev;Idleness max;Interferences"
-TERMINATIONS = ("TIMEOUT", "CYCLES", "FAIL", "ABORT", "STOPPED")
+#: statuses of field 14 (patrolling_sim.run_status explains each)
+TERMINATIONS = ("TIMEOUT", "CYCLES", "STOPPED", "FAIL", "ABORTED", "CRASHED", "INTERRUPTED")
 #: field names of the 22-field info.csv line, in order
 INFO_FIELDS = ("map", "team_size", "initial_positions", "goal_wait", "comm_delay",
                "nav_module", "algorithm", "algorithm_params", "hostname", "date",
@@ -64,13 +65,18 @@ class RunInfo:
     date: str = ""
 
 
+def fmt1(x) -> str:
+    """``%.1f`` of a metric, or an empty field when there is no value (no sample)."""
+    return "" if x is None else f"{x:.1f}"
+
+
 def info_line(info: RunInfo, stats: Stats, real_elapsed: float, termination: str) -> str:
     """The single info.csv line (no trailing newline)."""
     f = [info.map, str(info.team_size), info.initial_positions, f"{info.goal_wait:.1f}",
          f"{info.comm_delay:.2f}", info.nav_module, info.alg, info.algorithm_params,
          info.hostname or hostname(), info.date, f"{stats.elapsed:.1f}", f"{real_elapsed:.1f}",
-         str(stats.interferences), termination, f"{stats.global_min:.1f}",
-         f"{stats.global_avg:.1f}", f"{stats.global_sd:.1f}", f"{stats.global_max:.1f}",
+         str(stats.interferences), termination, fmt1(stats.global_min),
+         fmt1(stats.global_avg), fmt1(stats.global_sd), fmt1(stats.global_max),
          f"{stats.interference_rate:.2f}", str(stats.total_visits),
          f"{stats.avg_visits_per_node:.1f}", str(stats.cycles)]
     return ";".join(s.replace(";", ",").replace("\n", " ") for s in f)
@@ -88,10 +94,10 @@ def results_block(stats: Stats, real_elapsed: float, comm_delay: float) -> str:
           f"   median_idleness (graph) = {stats.graph_median:.1f}",
           f"   stddev_idleness (graph) = {stats.graph_sd:.1f}",
           "", "Global idleness",
-          f"   min = {stats.global_min:.1f}",
-          f"   avg = {stats.global_avg:.1f}",
-          f"   stddev = {stats.global_sd:.1f}",
-          f"   max = {stats.global_max:.1f}",
+          f"   min = {fmt1(stats.global_min)}",
+          f"   avg = {fmt1(stats.global_avg)}",
+          f"   stddev = {fmt1(stats.global_sd)}",
+          f"   max = {fmt1(stats.global_max)}",
           "",
           f"Interferences\t{stats.interferences}",
           f"Interference rate\t{stats.interference_rate:.2f}",
@@ -138,8 +144,9 @@ class ResultWriter:
         self._idl.flush()
 
     def time_row(self, stats: Stats) -> None:
-        self._time.write(f"{stats.elapsed:.1f};{stats.global_min:.1f};{stats.global_avg:.1f};"
-                         f"{stats.global_sd:.1f};{stats.global_max:.1f};{stats.interferences}\n")
+        self._time.write(f"{stats.elapsed:.1f};{fmt1(stats.global_min)};"
+                         f"{fmt1(stats.global_avg)};{fmt1(stats.global_sd)};"
+                         f"{fmt1(stats.global_max)};{stats.interferences}\n")
         self._time.flush()
 
     def cycle_block(self, stats: Stats, real_elapsed: float) -> None:
@@ -176,7 +183,8 @@ def parse_info_line(text: str, path: str = "info.csv") -> dict:
         for k in ("goal_wait", "comm_delay", "sim_duration", "real_duration", "idl_min",
                   "idl_avg", "idl_stddev", "idl_max", "interference_rate",
                   "avg_visits_per_node"):
-            d[k] = float(d[k])
+            # an empty idleness field: no sample (None)
+            d[k] = None if d[k] == "" and k.startswith("idl_") else float(d[k])
     except ValueError as e:
         raise ValueError(f"{path}: field '{k}' is not a number ({d[k]!r})") from e
     return d

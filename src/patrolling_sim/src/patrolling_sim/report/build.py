@@ -52,8 +52,28 @@ def _load_map(name, cache, warnings):
     return cache[name]
 
 
-def build_report(dirs, out_dir, title=None, run_plots=True):
-    """Write the report for the runs under ``dirs`` into ``out_dir``.
+def select_runs(runs, include_fail=False):
+    """(used, excluded): a report averages only runs that ended normally (TIMEOUT, CYCLES,
+    STOPPED; FAIL too with ``include_fail``); ``excluded`` is [(run, why)]."""
+    from .. import run_status as rs
+    ok = set(rs.NORMAL_ENDS) | ({rs.FAIL} if include_fail else set())
+    used, excluded = [], []
+    for r in runs:
+        if r.status in ok:
+            used.append(r)
+        else:
+            why = f"status {r.status or '?'}"
+            if r.status == rs.FAIL:
+                why += " (give --include-fail to use it)"
+            if r.status_note:
+                why += f": {r.status_note}"
+            excluded.append((r, why))
+    return used, excluded
+
+
+def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
+    """Write the report for the runs under ``dirs`` into ``out_dir``. Only runs that ended
+    normally are averaged (see :func:`select_runs`); the others are listed as excluded.
 
     Returns:
         dict with ``runs`` (number), ``per_run`` / ``summary`` / ``pvalues`` DataFrames,
@@ -62,7 +82,20 @@ def build_report(dirs, out_dir, title=None, run_plots=True):
     Raises:
         PatrolInputError: a bad input path or a malformed result file.
     """
-    runs, warnings = load_runs(dirs)
+    all_runs, warnings = load_runs(dirs)
+    runs, excluded = select_runs(all_runs, include_fail)
+    if not runs:
+        counts = {}
+        for r, _ in excluded:
+            counts[r.status] = counts.get(r.status, 0) + 1
+        raise PatrolInputError(
+            "argument RESULTS_DIR: no complete run to report ("
+            + ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
+            + "; only TIMEOUT/CYCLES/STOPPED runs are used, FAIL with --include-fail)")
+    inferred = [r for r in runs if r.status_note.startswith("no _run.yaml")]
+    if inferred:
+        warnings.append(f"{len(inferred)} run(s) without _run.yaml (older results): their "
+                        f"status was inferred from info.csv")
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise PatrolInputError(f"argument --out: '{out_dir}' exists and is not a directory")
     try:
@@ -80,7 +113,15 @@ def build_report(dirs, out_dir, title=None, run_plots=True):
             warnings.append(f"{r['prefix']}_info.csv: idl_avg {r['info_idl_avg']:.1f} differs "
                             f"from the mean of the idleness samples {r['avg_idleness']:.2f} "
                             f"(the table uses the samples)")
-    summary = summary_table(per_run)
+    per_run_all = run_table(all_runs)
+    summary = summary_table(per_run, per_run_all)
+    excluded_df = pd.DataFrame([{"run_id": r.run_id, "prefix": r.prefix,
+                                 "algorithm": r.info["algorithm"], "N": r.info["team_size"],
+                                 "map": r.info["map"], "status": r.status,
+                                 "sim_duration": r.info["sim_duration"], "why": why}
+                                for r, why in excluded],
+                               columns=["run_id", "prefix", "map", "N", "algorithm", "status",
+                                        "sim_duration", "why"])
     sig = significance(runs, per_run)
     settings = varying_settings(per_run)
     gcols = group_columns(per_run)
@@ -91,8 +132,10 @@ def build_report(dirs, out_dir, title=None, run_plots=True):
     summary.to_csv(os.path.join(out_dir, "summary.csv"), index=False, float_format="%.6g")
     per_run.to_csv(os.path.join(out_dir, "runs.csv"), index=False, float_format="%.6g")
     sig.to_csv(os.path.join(out_dir, "pairwise_pvalues.csv"), index=False, float_format="%.6g")
+    excluded_df.to_csv(os.path.join(out_dir, "excluded.csv"), index=False,
+                       float_format="%.6g")
     files += [os.path.join(out_dir, f) for f in ("summary.csv", "runs.csv",
-                                                 "pairwise_pvalues.csv")]
+                                                 "pairwise_pvalues.csv", "excluded.csv")]
 
     def samples_of(df):
         parts = [by_prefix[p].samples["Idleness"].to_numpy(dtype=float) for p in df["prefix"]]
@@ -168,7 +211,9 @@ def build_report(dirs, out_dir, title=None, run_plots=True):
 
     # --- HTML ----------------------------------------------------------------------
     sections = []
-    intro = (f"<p>{len(runs)} run(s) from {', '.join(H.esc(d) for d in dirs)}. Generated "
+    intro = (f"<p>{len(runs)} run(s) from {', '.join(H.esc(d) for d in dirs)}"
+             + (f" ({len(excluded)} more excluded: they did not end normally, see "
+                f"<i>Excluded runs</i>)" if excluded else "") + ". Generated "
              f"{H.esc(datetime.datetime.now().strftime('%Y-%m-%d %H:%M:%S'))}.</p>"
              "<p class='note'>Idleness metrics come from the idleness.csv samples (one per "
              "vertex visit after the first); complete cycles and interference rate (per "
@@ -181,13 +226,20 @@ def build_report(dirs, out_dir, title=None, run_plots=True):
     sections.append((None, intro))
 
     lead = [c for c in gcols]
-    header = lead + ["runs"] + [METRIC_LABELS[m] for m in METRICS]
+    header = lead + ["runs", "statuses (all loaded runs)"] + [METRIC_LABELS[m] for m in METRICS]
     rows = []
     for _, s in summary.iterrows():
-        rows.append([str(s[c]) for c in lead] + [str(s["runs"])] +
+        rows.append([str(s[c]) for c in lead] + [str(s["runs"]), str(s["statuses"])] +
                     [fmt_mean_sd(s[f"{m}_mean"], s[f"{m}_sd"],
                                  2 if m == "interference_rate" else 1) for m in METRICS])
-    sections.append(("Summary", H.table(header, rows, text_cols=range(len(lead)))))
+    sections.append(("Summary", H.table(header, rows, text_cols=range(len(lead) + 2))))
+    if excluded:
+        sections.append(("Excluded runs", "<p class='note'>Not averaged: these runs did not "
+                         "end normally (their metrics cover a truncated or failed run).</p>" +
+                         H.table(["run", "algorithm", "N", "status", "sim time (s)", "why"],
+                                 [[r.run_id, r.info["algorithm"], str(r.info["team_size"]),
+                                   r.status, f"{r.info['sim_duration']:.1f}", why]
+                                  for r, why in excluded], text_cols=(0, 1, 3, 5))))
 
     if sig.empty:
         body = ("<p>No comparison: significance tests need at least two algorithms with the "
@@ -226,15 +278,16 @@ def build_report(dirs, out_dir, title=None, run_plots=True):
 
     rheader = ["run", "algorithm", "N", "samples", "avg idleness (s)", "info.csv idl_avg",
                "max idleness (s)", "cycles", "interf. rate (1/min)", "sim time (s)",
-               "termination"]
+               "status"]
     rrows = []
     for _, r in per_run.iterrows():
         rrows.append([r["run_id"], r["algorithm"], str(r["N"]), str(r["samples"]),
                       "n/a" if H.is_nan(r["avg_idleness"]) else f"{r['avg_idleness']:.2f}",
-                      f"{r['info_idl_avg']:.1f}" + ("" if r["idl_avg_agrees"] else " (≠)"),
+                      ("n/a" if H.is_nan(r["info_idl_avg"]) else f"{r['info_idl_avg']:.1f}")
+                      + ("" if r["idl_avg_agrees"] else " (≠)"),
                       "n/a" if H.is_nan(r["max_idleness"]) else f"{r['max_idleness']:.1f}",
                       str(r["complete_cycles"]), f"{r['interference_rate']:.2f}",
-                      f"{r['sim_duration']:.1f}", r["termination"]])
+                      f"{r['sim_duration']:.1f}", r["status"]])
     sections.append(("Runs", H.table(rheader, rrows, text_cols=(0, 1, 10))))
     if run_plots:
         sections.append(("Idleness over time (one figure per run)",
@@ -246,4 +299,4 @@ def build_report(dirs, out_dir, title=None, run_plots=True):
         f.write(H.page(title, sections))
     files.insert(0, html_path)
     return {"runs": len(runs), "per_run": per_run, "summary": summary, "pvalues": sig,
-            "files": files, "warnings": warnings}
+            "files": files, "warnings": warnings, "excluded": excluded_df}

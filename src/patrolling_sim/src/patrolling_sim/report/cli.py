@@ -18,6 +18,9 @@ def parser():
     ap.add_argument("--title", default=None, help="report title")
     ap.add_argument("--no-run-plots", action="store_true",
                     help="skip the per-run idleness-over-time figures (large batches)")
+    ap.add_argument("--include-fail", action="store_true",
+                    help="also average runs that ended with FAIL (a robot declared dead); "
+                         "runs that were interrupted, crashed or aborted are never averaged")
     ap.add_argument("-q", "--quiet", action="store_true", help="no warnings, no summary")
     return ap
 
@@ -29,11 +32,18 @@ def main(argv):
     setup_logging()
     logging.getLogger("matplotlib").setLevel(logging.WARNING)
     from .build import build_report
-    res = build_report(args.dirs, args.out, args.title, run_plots=not args.no_run_plots)
+    res = build_report(args.dirs, args.out, args.title, run_plots=not args.no_run_plots,
+                       include_fail=args.include_fail)
     if not args.quiet:
         for w in res["warnings"]:
             sys.stderr.write(f"{PROG}: warning: {w}\n")
-        print(f"{res['runs']} run(s), {len(res['summary'])} group(s); report: {res['files'][0]}")
+        for _, e in res["excluded"].iterrows():
+            sys.stderr.write(f"{PROG}: excluded: {e['run_id']}: {e['why']}\n")
+        for _, g in res["summary"].iterrows():
+            print(f"  {g['map']} N={g['N']} {g['algorithm']}: {g['runs']} used; statuses "
+                  f"{g['statuses']}")
+        print(f"{res['runs']} run(s) used, {len(res['excluded'])} excluded, "
+              f"{len(res['summary'])} group(s); report: {res['files'][0]}")
     return 0
 
 

@@ -9,6 +9,13 @@ A run is identified by its ``_info.csv`` (written when the run ends). An ``_idle
 without an ``_info.csv`` belongs to a run that did not finish (killed, crashed, still
 running): it is skipped with a one-line warning. A malformed info.csv or idleness.csv is an
 error (:class:`PatrolInputError` naming the file and the problem).
+
+Each run's *status* (how it ended, :mod:`patrolling_sim.run_status`) comes from
+``<prefix>_run.yaml``. Older result folders have none: the status is then inferred from
+info.csv's termination field, checked against ``<prefix>_config.yaml`` when it exists (a
+run that says TIMEOUT but reached less simulated time than its configured timeout was cut
+short: it is counted as INTERRUPTED), and the run's ``status_note`` says it was inferred.
+Empty idleness fields in info.csv (a run without any idleness sample) load as NaN.
 """
 import logging
 import math
@@ -42,6 +49,8 @@ class Run:
     prefix: str
     info: dict
     samples: pd.DataFrame = field(repr=False)
+    status: str = ""
+    status_note: str = ""
 
     @property
     def label(self):
@@ -85,6 +94,9 @@ def parse_info(path):
             raise PatrolInputError(f"{path}: field {INFO_FIELDS.index(k) + 1} ({k}) is "
                                    f"'{info[k]}', expected an integer") from None
     for k in _FLOAT_FIELDS:
+        if k.startswith("idl_") and info[k] == "":
+            info[k] = float("nan")          # no idleness sample in the run
+            continue
         try:
             info[k] = float(info[k])
         except ValueError:
@@ -194,11 +206,43 @@ def find_runs(dirs):
     return sorted(prefixes.values()), warnings
 
 
+def run_status_of(prefix, info):
+    """(status, note) of a run: from ``<prefix>_run.yaml``, else inferred (see the module
+    docstring)."""
+    from .. import run_status as rs
+    rec = rs.read_run_yaml(prefix)
+    if rec and rec.get("status"):
+        status = rs.normalise(rec["status"])
+        note = str(rec.get("reason") or "")
+        if rec.get("written_by") == "monitor" and rec.get("exit_code") is None and \
+                status == rs.INTERRUPTED:
+            note += " (the runner did not record the end: it was killed)"
+        return status, note
+    status = rs.normalise(info["termination"])
+    note = "no _run.yaml (older run): status from info.csv"
+    if status == rs.TIMEOUT:
+        try:
+            import yaml
+            with open(prefix + "_config.yaml", encoding="utf-8") as f:
+                timeout = float((yaml.safe_load(f) or {}).get("timeout") or 0)
+        except (OSError, ValueError, TypeError, AttributeError):
+            timeout = None
+        except Exception:   # noqa: BLE001 - a malformed config only loses the check
+            timeout = None
+        if timeout and info["sim_duration"] < timeout - 1.0:
+            return rs.INTERRUPTED, (f"no _run.yaml (older run): info.csv says TIMEOUT but only "
+                                    f"{info['sim_duration']:.1f} of {timeout:g} sim s ran "
+                                    f"(config.yaml): counted as cut short")
+        note += " (not verified)" if timeout is None else " (checked against config.yaml)"
+    return status, note
+
+
 def load_run(prefix):
-    """Load one run (info + idleness samples)."""
+    """Load one run (info + idleness samples + status)."""
     info = parse_info(prefix + INFO_SUFFIX)
     samples = read_idleness(prefix + IDLENESS_SUFFIX)
-    return Run(prefix=prefix, info=info, samples=samples)
+    status, note = run_status_of(prefix, info)
+    return Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note)
 
 
 def load_runs(dirs):

@@ -61,8 +61,11 @@ def run_table(runs):
             "sim_duration": i["sim_duration"],
             "real_duration": i["real_duration"],
             "termination": i["termination"],
+            "status": r.status or i["termination"],
+            "status_note": r.status_note,
             "info_idl_avg": i["idl_avg"],
-            "idl_avg_agrees": bool(idl.size and abs(avg - i["idl_avg"]) <= AGREE_TOL),
+            "idl_avg_agrees": bool(idl.size and abs(avg - i["idl_avg"]) <= AGREE_TOL)
+            if not np.isnan(i["idl_avg"]) else not idl.size,
         })
     df = pd.DataFrame(rows)
     if not df.empty:
@@ -80,23 +83,38 @@ def group_columns(per_run):
     return ["map", "N"] + varying_settings(per_run) + ["algorithm"]
 
 
-def summary_table(per_run):
-    """One row per group: group columns, ``runs``, ``samples`` and ``<metric>_mean`` /
-    ``<metric>_sd`` for each metric (sd = sample SD over runs, NaN for a single run).
-    Runs without idleness samples count in ``runs`` but not in the idleness means."""
+def status_counts(per_run_all, cols):
+    """{group key tuple: 'TIMEOUT 3, CRASHED 1'} over every loaded run (used or not)."""
+    out = {}
+    for key, g in per_run_all.groupby(cols, sort=True, dropna=False):
+        key = key if isinstance(key, tuple) else (key,)
+        counts = g["status"].value_counts()
+        out[key] = ", ".join(f"{s} {int(n)}" for s, n in sorted(counts.items()))
+    return out
+
+
+def summary_table(per_run, per_run_all=None):
+    """One row per group: group columns, ``runs``, ``samples``, ``statuses`` (the status
+    counts of every loaded run of the group, ``per_run_all``, including runs left out of the
+    means) and ``<metric>_mean`` / ``<metric>_sd`` for each metric (sd = sample SD over runs,
+    NaN for a single run). Runs without idleness samples count in ``runs`` but not in the
+    idleness means."""
     cols = group_columns(per_run)
+    counts = status_counts(per_run if per_run_all is None else per_run_all, cols) \
+        if "status" in per_run else {}
     out = []
     for key, g in per_run.groupby(cols, sort=True, dropna=False):
         key = key if isinstance(key, tuple) else (key,)
         row = dict(zip(cols, key))
         row["runs"] = int(len(g))
+        row["statuses"] = counts.get(key, "")
         row["samples"] = int(g["samples"].sum())
         for m in METRICS:
             v = g[m].dropna().to_numpy(dtype=float)
             row[f"{m}_mean"] = float(v.mean()) if v.size else np.nan
             row[f"{m}_sd"] = float(v.std(ddof=1)) if v.size > 1 else np.nan
         out.append(row)
-    return pd.DataFrame(out, columns=cols + ["runs", "samples"] +
+    return pd.DataFrame(out, columns=cols + ["runs", "statuses", "samples"] +
                         [f"{m}_{s}" for m in METRICS for s in ("mean", "sd")])
 
 

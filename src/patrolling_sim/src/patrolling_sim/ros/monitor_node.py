@@ -10,8 +10,11 @@ by :class:`patrolling_sim.results.ResultWriter`; this module is the ROS glue:
   ``[id,12]`` -> interference; a timeresults row every 900 s of sim time;
 - ends on ``~timeout`` (sim s since GO, "TIMEOUT"), ``~cycles`` complete cycles ("CYCLES"),
   a robot silent for ``~dead_robot_timeout`` s ("FAIL"), ``/simulation_abort`` true
-  ("ABORT") or ``/simulation_running`` false ("STOPPED"): publishes END ``[-1,10,999]``,
-  writes info.csv and exits 0. On SIGINT / shutdown it writes info.csv too ("TIMEOUT").
+  ("ABORTED") or ``/simulation_running`` false ("STOPPED"): publishes END ``[-1,10,999]``,
+  writes info.csv and ``<prefix>_run.yaml`` (:mod:`patrolling_sim.run_status`) and exits 0.
+  Stopped from outside before its own end (SIGINT, ``rosnode kill``, roslaunch shutting
+  down) it writes them too, with status "INTERRUPTED": the metrics cover a truncated run.
+  The experiment runner then records the real cause (a signal, a crashed node).
 - publishes live graph markers on ``/patrol_graph_markers`` (~1 Hz).
 """
 import math
@@ -28,6 +31,7 @@ from .. import paths
 from ..errors import PatrolInputError
 from ..graph import PatrolGraph, load_graph
 from ..monitor_core import MonitorCore
+from .. import run_status as rs
 from ..results import ResultWriter, RunInfo, default_prefix, timestamp
 from . import markers
 
@@ -65,13 +69,14 @@ def _bool_param(name, default):
 class Monitor:
     """Construct inside an initialised rospy node, then :meth:`run`."""
 
-    def __init__(self, map_arg, alg, team_size):
+    def __init__(self, map_arg, alg, team_size, map_label=None):
         try:
             _, graph_path = paths.map_files(map_arg)
             self.graph = PatrolGraph(load_graph(graph_path))
         except PatrolInputError as e:
             raise MonitorError(str(e))
-        self.map_name = paths.map_name(map_arg)
+        self.map_name = str(rospy.get_param("~map_label", "") or map_label or
+                            paths.map_name(map_arg))
         self.alg = alg
         self.n_robots = team_size
         self.results_dir = str(rospy.get_param("~results_dir", "") or
@@ -109,6 +114,7 @@ class Monitor:
         self.lock = threading.RLock()
         self.finished = False
         self.termination = None
+        self.failed_robots = []
         self.wall_zero = None
         self.last_time_row = 0.0
         self.go_count = 0
@@ -205,19 +211,20 @@ class Monitor:
                     if self.timeout > 0 and t >= self.timeout:
                         self._finish("TIMEOUT", now)
                     elif self.dead_timeout > 0:
-                        for rid, last in self.core.last_report.items():
-                            if t - last > self.dead_timeout:
-                                rospy.logerr("monitor: robot %d sent no visit for %.0f s: FAIL",
-                                             rid, t - last)
-                                self._finish("FAIL", now)
-                                break
+                        dead = sorted(rid for rid, last in self.core.last_report.items()
+                                      if t - last > self.dead_timeout)
+                        if dead:
+                            rospy.logerr("monitor: robot(s) %s sent no visit for %.0f s: FAIL",
+                                         ", ".join(map(str, dead)), self.dead_timeout)
+                            self.failed_robots = dead
+                            self._finish(rs.FAIL, now)
             if self.finished:
                 break
             if wall - last_params >= 1.0:
                 last_params = wall
                 try:
                     if _bool_param("/simulation_abort", False):
-                        self._finish("ABORT", now)
+                        self._finish(rs.ABORTED, now)
                     elif not _bool_param("/simulation_running", True):
                         self._finish("STOPPED", now)
                 except (ConnectionError, OSError, rospy.ROSException):
@@ -263,6 +270,23 @@ class Monitor:
         stats = self.core.stats(now)
         path = self.writer.write_info(stats, self._real_elapsed(), termination)
         self.writer.close()
+        reasons = {rs.TIMEOUT: f"the timeout of {self.timeout:g} sim s was reached",
+                   rs.CYCLES: f"{self.max_cycles} complete patrol cycles done",
+                   rs.FAIL: f"robot(s) {', '.join(map(str, self.failed_robots))} sent no "
+                            f"visit for {self.dead_timeout:g} sim s",
+                   rs.ABORTED: "/simulation_abort was set",
+                   rs.STOPPED: "/simulation_running was set false",
+                   rs.INTERRUPTED: "the monitor was stopped from outside before the run's "
+                                   "end (signal or shutdown)"}
+        try:
+            rs.write_run_yaml(self.prefix, {
+                "status": termination, "reason": reasons.get(termination, ""),
+                "culprit": None, "robots": list(self.failed_robots), "signal": None,
+                "sim_time": round(stats.elapsed, 1), "wall_time": None,
+                "real_time_since_go": round(self._real_elapsed(), 1), "exit_code": None,
+                "written_by": "monitor"})
+        except OSError as e:
+            rospy.logerr("monitor: cannot write %s_run.yaml: %s", self.prefix, e)
         msg = f"Info file {path} saved."
         rospy.loginfo("%s", msg)
         print(msg, flush=True)
@@ -273,12 +297,12 @@ class Monitor:
             if self.finished:
                 return
             self.finished = True
-            self.termination = "TIMEOUT"
+            self.termination = rs.INTERRUPTED
             try:
                 now = rospy.get_time()
             except Exception:
                 now = self.core.time_zero or 0.0
-            self._write_info("TIMEOUT", now)
+            self._write_info(rs.INTERRUPTED, now)
 
 
 def main(argv=None):
@@ -298,7 +322,7 @@ def main(argv=None):
             raise MonitorError(f"N: expected a positive integer, got '{n_raw}'")
         if n < 1:
             raise MonitorError(f"N: team size must be >= 1, got {n}")
-        mon = Monitor(map_arg, alg, n)
+        mon = Monitor(map_arg, alg, n, map_label=paths.map_name(args[0]))
     except MonitorError as e:
         sys.stderr.write(f"{prog}: error: {e}\n")
         return 2

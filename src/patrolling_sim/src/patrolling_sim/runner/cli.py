@@ -11,8 +11,10 @@ Forms::
     start_experiments.py --batch batch.yaml --parallel 2
 
 Everything is validated before anything starts; errors are one line and exit status 2.
-A run exits 0 when it ended normally (timeout or k cycles), 1 when it failed, 130 when
-interrupted. A batch exits 0 only if every run did.
+A run exits 0 when it ended normally (TIMEOUT, CYCLES, STOPPED), 1 on FAIL or ABORTED, 3
+when a node crashed, 130 on SIGINT, 143 on SIGTERM (patrolling_sim.run_status); the status
+is recorded in info.csv and ``<prefix>_run.yaml``. With ``--batch``, flags given on the
+command line override every entry of the batch; a batch exits 0 only if every run did.
 """
 import os
 import signal
@@ -27,8 +29,9 @@ from .batch import load_batch
 from .config import ExperimentConfig, from_positional, load_config_file
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
-             "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes")
-BOOL_KEYS = ("rviz", "gui_sim", "record")
+             "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes",
+             "dead_robot_timeout")
+BOOL_KEYS = ("rviz", "gui_sim", "record", "force")
 
 
 def build_parser():
@@ -55,6 +58,11 @@ def build_parser():
     ap.add_argument("--processes", help="shared (default: agents in one process, each robot's "
                     "localisation + navigation in one) | separate (one process per node)")
     ap.add_argument("--results-dir", dest="results_dir")
+    ap.add_argument("--dead-robot-timeout", dest="dead_robot_timeout", type=float,
+                    help="sim seconds without a visit before a robot is declared dead "
+                         "(status FAIL; default 300 as the original, 0 = never)")
+    ap.add_argument("--force", action="store_true", default=None,
+                    help="run even when the memory estimate exceeds the available memory")
     ap.add_argument("--rviz", action="store_true", default=None, help="open rviz")
     ap.add_argument("--gui-sim", dest="gui_sim", action="store_true", default=None,
                     help="open the simulator window")
@@ -72,6 +80,12 @@ def build_parser():
     return ap
 
 
+def flag_overrides(args):
+    """The configuration keys given as flags on the command line."""
+    return {k: getattr(args, k) for k in FLAG_KEYS + BOOL_KEYS
+            if getattr(args, k, None) is not None}
+
+
 def config_from_args(args):
     if args.positional:
         cfg = from_positional(args.positional)
@@ -81,23 +95,31 @@ def config_from_args(args):
         cfg = ExperimentConfig()
     if args.positional and args.config:
         cfg = load_config_file(args.config, cfg)
-    overrides = {k: getattr(args, k) for k in FLAG_KEYS + BOOL_KEYS
-                 if getattr(args, k, None) is not None}
-    return cfg.updated(overrides, "command line")
+    return cfg.updated(flag_overrides(args), "command line")
 
 
-def run_one(cfg, out=print):
+def safe_print(*args, **kw):
+    """print that survives a closed stdout (the reader of a pipe went away): the run must
+    still be recorded."""
+    try:
+        print(*args, flush=True, **kw)
+    except (OSError, ValueError):
+        pass
+
+
+def run_one(cfg, out=safe_print):
     """Run one validated experiment in this process; returns its Outcome."""
     from .supervisor import Experiment
     exp = Experiment(cfg, out=out)
 
-    def on_term(signum, frame):
-        exp.request_stop("terminated by SIGTERM")
-    old = signal.signal(signal.SIGTERM, on_term)
-    # Ctrl-C / SIGINT must stop the run even when this process inherited SIGINT ignored
-    # (started in the background by a non-interactive shell, as nohup and `cmd &` in
-    # scripts do): Python then leaves it ignored instead of raising KeyboardInterrupt
-    old_int = signal.signal(signal.SIGINT, signal.default_int_handler)
+    # SIGINT / SIGTERM only set a flag that the supervisor checks several times a second,
+    # so a signal at any moment (launch, wait for GO, run, shutdown) ends the run in order.
+    # SIGINT is handled even when this process inherited it ignored (started in the
+    # background by a non-interactive shell, as nohup and `cmd &` in scripts do).
+    def on_signal(signum, frame):
+        exp.request_stop(signal.Signals(signum).name)
+    old = signal.signal(signal.SIGTERM, on_signal)
+    old_int = signal.signal(signal.SIGINT, on_signal)
     try:
         outcome = exp.run()
     finally:
@@ -114,16 +136,24 @@ def run_one(cfg, out=print):
     return outcome
 
 
-def print_summary(outcome, out=print):
+def print_summary(outcome, out=safe_print):
     from .supervisor import read_info
     info = read_info(outcome.prefix)
-    out(f"result: {outcome.reason} (exit {outcome.exit_code}); wall {outcome.wall_time:.1f} s"
+    rec = outcome.record or {}
+    pace = f", pace {rec['pace']:.2f}x" if rec.get("pace") else ""
+    out(f"result: {outcome.reason} (exit {outcome.exit_code}); sim {outcome.sim_time:.1f} s, "
+        f"wall {outcome.wall_time:.1f} s{pace}"
         + (f", GO after {outcome.go_wall:.1f} s" if outcome.go_wall is not None else ""))
+    culprit = rec.get("culprit") or {}
+    for line in (culprit.get("log_tail") or [])[-5:]:
+        out(f"  | {line}")
     if info and len(info) >= 22:
+        def idl(x):
+            return f"{x} s" if x else "-"
         out(f"summary: sim {info[10]} s, real {info[11]} s, cycles {info[21]}, visits "
-            f"{info[19]}, idleness avg {info[15]} s / max {info[17]} s, interferences "
+            f"{info[19]}, idleness avg {idl(info[15])} / max {idl(info[17])}, interferences "
             f"{info[12]} ({info[18]}/min), end {info[13]}")
-    out(f"results: {outcome.prefix}_*")
+    out(f"results: {outcome.prefix}_* (status {outcome.status}, in {outcome.prefix}_run.yaml)")
     for f in outcome.files:
         out(f"  {f}")
 
@@ -131,6 +161,7 @@ def print_summary(outcome, out=print):
 def run_batch(configs, parallel, argv0, out=print):
     """Run validated configurations, ``parallel`` at a time, each in its own process
     (each with its own ROS master). Returns the list of (config, exit code, result line)."""
+    import shutil
     import tempfile
     pending = list(enumerate(configs))
     running = {}
@@ -173,12 +204,28 @@ def run_batch(configs, parallel, argv0, out=print):
                 pass
         for i, (p, logf, t0) in running.items():
             try:
-                p.wait(timeout=90)
+                p.wait(timeout=30)
             except subprocess.TimeoutExpired:
                 p.kill()
-            results[i] = (configs[i], 130, "interrupted", "", time.monotonic() - t0)
-        raise
+                p.wait()
+            logf.seek(0)
+            lines = logf.read().splitlines()
+            logf.close()
+            res = next((l for l in reversed(lines) if l.startswith("results:")), "")
+            results[i] = (configs[i], p.returncode, "interrupted", res, time.monotonic() - t0)
+        raise BatchInterrupted(results)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
     return results
+
+
+class BatchInterrupted(Exception):
+    """The batch was interrupted; ``results`` as :func:`run_batch` returns them (None for
+    runs never started)."""
+
+    def __init__(self, results):
+        super().__init__("batch interrupted")
+        self.results = results
 
 
 def print_batch_table(results, out=print):
@@ -186,6 +233,7 @@ def print_batch_table(results, out=print):
     out(f"{'#':>3}  {'map':<14} {'N':>3} {'alg':<6} {'seed':>5} {'exit':>4}  {'wall s':>7}  result")
     for k, r in enumerate(results):
         if r is None:
+            out(f"{k + 1:>3}  {'-':<14} {'':>3} {'':<6} {'':>5} {'':>4}  {'':>7}  never started")
             continue
         cfg, code, why, res, wall = r
         out(f"{k + 1:>3}  {cfg.map_name:<14} {cfg.robots:>3} {cfg.alg:<6} {cfg.seed:>5} "
@@ -202,13 +250,36 @@ def main(argv):
         if args.parallel < 1:
             raise PatrolInputError(f"argument --parallel: must be >= 1, got {args.parallel}")
         base = load_config_file(args.config) if args.config else ExperimentConfig()
-        configs = load_batch(args.batch, base)
+        # flags given with --batch override every entry (as for --config)
+        overrides = flag_overrides(args)
+        configs = [c.updated(overrides, "command line") for c in load_batch(args.batch, base)]
         for k, c in enumerate(configs):
             try:
                 c.validate()
             except PatrolInputError as e:
                 raise PatrolInputError(f"{args.batch}: entry {k + 1}: {e}") from None
-        results = run_batch(configs, args.parallel, os.path.abspath(sys.argv[0]))
+        if args.dry_run:
+            for k, c in enumerate(configs):
+                print(f"run {k + 1}: " + " ".join(f"{key}={v}" for key, v in c.to_dict().items()))
+            return 0
+        got = []
+
+        def on_signal(signum, frame):
+            got.append(signum)
+            raise KeyboardInterrupt
+        old_term = signal.signal(signal.SIGTERM, on_signal)
+        old_int = signal.signal(signal.SIGINT, on_signal)
+        try:
+            results = run_batch(configs, args.parallel, os.path.abspath(sys.argv[0]))
+        except BatchInterrupted as e:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)    # let the table be printed
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            print_batch_table(e.results)
+            print("batch interrupted: runs with exit 130 were interrupted, '-' never started")
+            return 143 if got and got[0] == signal.SIGTERM else 130
+        finally:
+            signal.signal(signal.SIGTERM, old_term)
+            signal.signal(signal.SIGINT, old_int)
         print_batch_table(results)
         return 0 if all(r and r[1] == 0 for r in results) else 1
     no_config = not args.positional and not args.config and not any(
@@ -218,6 +289,8 @@ def main(argv):
             raise PatrolInputError("no display for the GUI: give --headless with --map/--robots/"
                                    "--alg..., --config FILE, or the positional form")
         from .gui import run_gui
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
         return run_gui(os.path.abspath(sys.argv[0]),
                        load_config_file(args.config) if args.config else None)
     cfg = config_from_args(args).validate()

@@ -27,6 +27,9 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     gui_sim      open the simulator's window                         (false)
     record       save simulator snapshots and assemble a video       (false)
     record_period  sim seconds between snapshots                     (1.0)
+    dead_robot_timeout  sim s without a visit report before a robot is declared dead
+                 (run status FAIL); 0 = never                        (300, the original's)
+    force        run even when the memory estimate exceeds the machine's  (false)
     processes    shared | separate                                   (shared)
                  shared: all agents in one process (patrol_agents) and each robot's
                  localisation + move_base in one process (robot_nav) -- same topics and
@@ -37,13 +40,16 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
 ``validate()`` raises :class:`PatrolInputError` with one line naming the key or argument.
 """
 import dataclasses
+import logging
 import os
 from dataclasses import dataclass, field
 
 import yaml
 
-from .. import paths
+from .. import paths, validation
 from ..errors import PatrolInputError
+
+log = logging.getLogger(__name__)
 
 LOC_MODES = ("AMCL", "fake_localization")
 NAV_MODES = ("spqrel_nav_lite", "ros", "abstract")
@@ -76,6 +82,8 @@ class ExperimentConfig:
     record: bool = False
     record_period: float = 1.0
     processes: str = "shared"
+    dead_robot_timeout: float = 300.0
+    force: bool = False
 
     # ------------------------------------------------------------------ conversion
     def to_dict(self):
@@ -113,10 +121,7 @@ class ExperimentConfig:
         """Check every field; return self. Raises PatrolInputError (one line)."""
         if not self.map:
             raise PatrolInputError("argument --map: a map is required")
-        yaml_path, graph_path = paths.map_files(self.map)
-        for p in (yaml_path, graph_path):
-            if not os.path.isfile(p):
-                raise PatrolInputError(f"argument --map: '{self.map}': file {p} not found")
+        validation.check_map_files(self.map)
         if self.robots is None:
             raise PatrolInputError("argument --robots: a team size is required")
         if self.robots < 1:
@@ -140,7 +145,7 @@ class ExperimentConfig:
         if self.processes not in PROCESS_MODES:
             raise PatrolInputError(f"argument --processes: must be one of "
                                    f"{', '.join(PROCESS_MODES)}, got '{self.processes}'")
-        for name in ("gwait", "comm_delay", "timeout", "record_period"):
+        for name in ("gwait", "comm_delay", "timeout", "record_period", "dead_robot_timeout"):
             if getattr(self, name) < 0:
                 raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be >= 0, "
                                        f"got {getattr(self, name)}")
@@ -157,9 +162,20 @@ class ExperimentConfig:
         if not self.initpos:
             self.initpos = "default"
         if check_start_positions:
-            self.start_positions()
+            _, pgraph = validation.check_start_positions(self.map, self.robots, self.initpos)
+            warning = validation.team_size_warning(self.robots, pgraph.n, self.map_name)
+            if warning:
+                log.warning("%s", warning[len("warning: "):])
+        validation.check_memory(self.robots, self.processes, self.force)
         if check_writable:
             check_writable_dir(self.results_dir, "argument --results-dir")
+        if self.nav == "ros":
+            from .rosenv import workspace_env
+            try:
+                env = workspace_env()
+            except PatrolInputError:
+                env = None
+            validation.check_ros_navigation(self.loc, env)
         return self
 
     def start_positions(self):
@@ -175,6 +191,12 @@ class ExperimentConfig:
     @property
     def map_name(self):
         return paths.map_name(self.map)
+
+    @property
+    def result_name(self):
+        """Name the results are filed under (a user map gets a content hash, see
+        :func:`patrolling_sim.validation.result_map_name`)."""
+        return validation.result_map_name(self.map)
 
 
 def _convert(value, typ, where):
@@ -210,14 +232,7 @@ def _convert(value, typ, where):
 
 def check_writable_dir(path, what):
     """Create ``path`` if needed and check a file can be written in it."""
-    try:
-        os.makedirs(path, exist_ok=True)
-        probe = os.path.join(path, f".write_probe_{os.getpid()}")
-        with open(probe, "w") as f:
-            f.write("")
-        os.remove(probe)
-    except OSError as e:
-        raise PatrolInputError(f"{what}: '{path}' is not writable ({e.strerror})") from None
+    validation.check_writable_dir(path, what)
 
 
 def load_config_file(path, base=None):

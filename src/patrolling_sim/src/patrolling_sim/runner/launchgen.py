@@ -126,6 +126,8 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'    <param name="run_prefix" value={_attr(run_prefix)}/>')
     a(f'    <param name="timeout" value="{_num(cfg.timeout)}"/>')
     a(f'    <param name="cycles" value="{int(cfg.cycles)}"/>')
+    a(f'    <param name="dead_robot_timeout" value="{_num(cfg.dead_robot_timeout)}"/>')
+    a(f'    <param name="map_label" value={_attr(cfg.result_name)}/>')
     a("  </node>")
     if cfg.processes == "shared":
         # every agent in one process: the same PatrolAgent objects and topics, but each
