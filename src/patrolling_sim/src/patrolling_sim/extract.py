@@ -457,3 +457,44 @@ def _renumber(G, edge_paths):
             H.add_edge(new[old], w, **d)
     paths_ = {(new[u], new[w]): pth for (u, w), pth in edge_paths.items()}
     return H, paths_
+
+
+# ------------------------------------------------------------------------------ init-map
+def init_map_yaml(image, resolution, origin=(0.0, 0.0, 0.0), out=None, force=False,
+                  negate=False):
+    """Write a map_server yaml for ``image`` (png/pgm/...: dark = occupied, light = free,
+    as map_server's trinary mode reads it) and return its path. The image is checked by
+    loading the written yaml with :func:`patrolling_sim.mapio.load_map`; on any problem
+    nothing is left behind.
+
+    Raises:
+        PatrolInputError: missing/undecodable image, resolution <= 0, non-finite origin,
+            existing yaml without ``force``.
+    """
+    import os
+    from .mapio import load_map, read_image
+    if not (resolution > 0 and math.isfinite(resolution)):
+        raise PatrolInputError(f"argument --resolution: must be > 0 metres per pixel, "
+                               f"got {resolution:g}")
+    if not all(math.isfinite(v) for v in origin):
+        raise PatrolInputError(f"argument --origin: must be finite numbers, got {origin}")
+    if not os.path.isfile(image):
+        raise PatrolInputError(f"{image}: image not found")
+    read_image(image, image)
+    out = out or os.path.splitext(image)[0] + ".yaml"
+    if os.path.exists(out) and not force:
+        raise PatrolInputError(f"argument --out: {out} exists (use --force to overwrite)")
+    rel = os.path.relpath(os.path.abspath(image), os.path.dirname(os.path.abspath(out)))
+    text = (f"image: {rel}\nresolution: {float(resolution)!r}\n"
+            f"origin: [{float(origin[0])!r}, {float(origin[1])!r}, {float(origin[2])!r}]\n"
+            f"negate: {int(bool(negate))}\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    tmp = f"{out}.tmp{os.getpid()}"
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+    try:
+        load_map(tmp)
+    except PatrolInputError:
+        os.remove(tmp)
+        raise
+    os.replace(tmp, out)
+    return out
