@@ -111,6 +111,23 @@ def cyclic_start_vertices(pgraph, alg, n, map_name, usable, speed=1.0, goal_wait
         return None
     cands = sorted(offsets.items(), key=lambda kv: (kv[1], kv[0]))
     times = np.array([c[1] for c in cands])
+    # every vertex's passes along the walk: its steady-state idleness is the largest gap
+    # between consecutive passes of any robot (a vertex may occur several times on the walk)
+    occ_v = np.array(ref)
+    occ_t = t[:-1]
+
+    def score(chosen):
+        starts = times[chosen]
+        pass_t = (occ_t[None, :] - starts[:, None]) % T          # (robots, occurrences)
+        worst_gap = 0.0
+        for v in np.unique(occ_v):
+            ts = np.sort(pass_t[:, occ_v == v].ravel())
+            gaps = np.diff(np.concatenate([ts, [ts[0] + T]]))
+            worst_gap = max(worst_gap, float(gaps.max()))
+        ts = np.sort(starts)
+        rg = np.diff(np.concatenate([ts, [ts[0] + T]]))
+        return (round(worst_gap, 6), round(float(np.square(rg - T / n).sum()), 6))
+
     best = None
     for a in range(len(cands)):
         chosen = [a]
@@ -120,12 +137,23 @@ def cyclic_start_vertices(pgraph, alg, n, map_name, usable, speed=1.0, goal_wait
             d = np.minimum(d, T - d)
             d[chosen] = np.inf
             chosen.append(int(np.argmin(d)))
-        ts = np.sort(times[chosen])
-        gaps = np.diff(np.concatenate([ts, [ts[0] + T]]))
-        key = (round(float(gaps.max()), 9), round(float(np.square(gaps - T / n).sum()), 9))
+        key = score(chosen)
         if best is None or key < best[0]:
-            best = (key, [cands[c][0] for c in chosen])
-    return best[1]
+            best = (key, chosen)
+    # then single-robot moves while the worst idleness (then the spacing) improves
+    key, chosen = best
+    improved = True
+    while improved:
+        improved = False
+        for i in range(n):
+            for c in range(len(cands)):
+                if c in chosen:
+                    continue
+                trial = chosen[:i] + [c] + chosen[i + 1:]
+                k2 = score(trial)
+                if k2 < key:
+                    key, chosen, improved = k2, trial, True
+    return [cands[c][0] for c in chosen]
 
 
 def partition_start_vertices(pgraph, n, map_name, usable, params=None):
