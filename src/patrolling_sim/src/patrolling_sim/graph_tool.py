@@ -4,7 +4,7 @@ Sub-commands::
 
     check [MAP ...]              parse maps (all shipped maps by default); print V/E, warnings
     info MAP                     one line per vertex: id, pixels, metres, neighbours
-    startposes MAP N [--initpos VARIANT]   start positions for N robots
+    startposes MAP N [--initpos VARIANT] [--alg ALG]   start positions for N robots
     draw MAP --out PNG           picture of the graph over the map
     write MAP --out GRAPH        write the graph back in .graph format
     msp MAP N                    check the shipped MSP route files for N robots
@@ -57,7 +57,7 @@ def cmd_startposes(args):
     occ, G, pg = _load(args.map)
     table = load_initial_poses(paths.initial_poses_file())
     pos, src = start_positions(paths.map_name(args.map), args.n, pg, occ, args.initpos, table,
-                               paths.initial_poses_file())
+                               paths.initial_poses_file(), alg=args.alg)
     print(f"# {len(pos)} start positions ({src})")
     for k, (x, y) in enumerate(pos):
         print(f"robot_{k}\t{x:.3f}\t{y:.3f}\tvertex {pg.nearest_vertex(x, y)}")
@@ -136,9 +136,12 @@ def cmd_extract(args):
     if problems:     # never expected: the extractor builds what the checker accepts
         raise PatrolInputError(f"{yaml_path}: extracted graph fails its check: {problems[0]}")
     pg = PatrolGraph(G)
-    for a, x, y in res.dropped:
-        print(f"note: ignored a separate free-space piece of {a:.1f} m2 around "
-              f"({x:.1f}, {y:.1f}) m (outside the building, a pocket, or --largest)")
+    if res.dropped:
+        shown = "; ".join(f"{a:.1f} m2 around ({x:.1f}, {y:.1f})" for a, x, y in res.dropped[:4])
+        more = f" and {len(res.dropped) - 4} smaller" if len(res.dropped) > 4 else ""
+        print(f"note: ignored {len(res.dropped)} separate piece(s) of usable free space "
+              f"(outside the building, pockets under 10 % of the main piece, or --largest): "
+              f"{shown}{more}")
     write_graph(G, out)
     tmp = f"{png}.tmp{os.getpid()}.png"
     save_png(draw_graph(occ, pg), tmp)
@@ -176,7 +179,9 @@ def main(argv):
     p = sub.add_parser("startposes")
     p.add_argument("map")
     p.add_argument("n", type=int)
-    p.add_argument("--initpos", default="default")
+    p.add_argument("--initpos", default="default",
+                   help="'default', a table variant, or 'optimised' (needs --alg)")
+    p.add_argument("--alg", help="algorithm the optimised start is chosen for")
     p.set_defaults(fn=cmd_startposes)
     p = sub.add_parser("draw")
     p.add_argument("map")
