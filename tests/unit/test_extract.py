@@ -38,9 +38,26 @@ def floor_plan(path, rooms=4):
     return str(path)
 
 
-def run_tool(*args, cwd=None):
-    return subprocess.run(["/usr/bin/python3", TOOL, *args], capture_output=True, text=True,
-                          cwd=cwd)
+def run_tool(*args):
+    """graph_tool.py in this process (as its entry point runs it): (returncode, stdout, stderr)."""
+    import contextlib
+    import io
+    from patrolling_sim.cli import run_main
+    from patrolling_sim.graph_tool import main
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = run_main(main, "graph_tool.py", list(args))
+        except SystemExit as e:         # argparse errors
+            rc = e.code
+    return subprocess.CompletedProcess(args, rc, out.getvalue(), err.getvalue())
+
+
+def test_script_entry_point(tmp_path):
+    r = subprocess.run(["/usr/bin/python3", TOOL, "extract", "grid", "--spacing", "0"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.strip() == \
+        "graph_tool.py: error: argument --spacing: must be > 0 metres, got 0"
 
 
 def test_floor_plan_image_to_graph_mode_run(tmp_path):

@@ -372,7 +372,8 @@ def extract_graph(occ, params=None, name="extracted"):
         rows, cols = np.nonzero(usable)
         P.add_node((int(rows[0]), int(cols[0])))
     nodes, branches = _branches(P)
-    groups = _merge_close_nodes(P, nodes, branches, max(2 * p.clearance, p.spacing / 3) / res)
+    merge_px = max(2 * p.clearance, p.spacing / 3) / res
+    groups = _merge_close_nodes(P, nodes, branches, merge_px)
     group_of = {q: gi for gi, g in enumerate(groups) for q in g}
 
     # vertex pixels: a group's member with the largest clearance (first in pixel order)
@@ -386,9 +387,9 @@ def extract_graph(occ, params=None, name="extracted"):
     spacing_px = p.spacing / res
     for br in branches:
         ga, gb = group_of[br[0]], group_of[br[-1]]
-        if ga == gb and (br[0] == br[-1] or _length(br) < spacing_px / 4):
-            continue            # merged away (short link inside a junction cluster)
         L = _length(br)
+        if ga == gb and L < 3 * merge_px:
+            continue            # a link inside a junction cluster, a small loop
         pieces_n = max(1, int(round(L / spacing_px)))
         if ga == gb:
             pieces_n = max(pieces_n, 3)     # a loop needs two intermediate vertices
@@ -404,6 +405,8 @@ def extract_graph(occ, params=None, name="extracted"):
         for u, w in zip(chain, chain[1:]):
             if u != w:
                 edges.append((min(u, w), max(u, w), L / pieces_n))
+    vert_px, edges = _contract_short(vert_px, edges, merge_px / 2, clear_px)
+    vert_px, edges = _drop_stub_ends(vert_px, edges, merge_px)
     # snap vertices that fell on a filled hole back into usable space
     if (~usable[tuple(np.array(vert_px).T)]).any():
         _, (ir, ic) = ndimage.distance_transform_edt(~usable, return_indices=True)
@@ -440,6 +443,60 @@ def extract_graph(occ, params=None, name="extracted"):
                        cost_m=cost * res)
     G = _renumber(G, edge_paths)
     return ExtractionResult(G[0], usable, skel, dropped, G[1])
+
+
+def _contract_short(vert_px, edges, min_px, clear_px):
+    """Merge the two ends of every edge shorter than ``min_px`` (straight line); the merged
+    vertex is the one with the larger clearance. Returns renumbered (vert_px, edges)."""
+    parent = list(range(len(vert_px)))
+
+    def find(v):
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+    for u, w, _ in sorted(edges):
+        a, b = find(u), find(w)
+        if a != b and math.hypot(vert_px[a][0] - vert_px[b][0],
+                                 vert_px[a][1] - vert_px[b][1]) < min_px:
+            keep, drop = (a, b) if (clear_px[vert_px[a]], -a) >= (clear_px[vert_px[b]], -b) \
+                else (b, a)
+            parent[drop] = keep
+    roots = sorted({find(v) for v in range(len(vert_px))})
+    new_id = {r: i for i, r in enumerate(roots)}
+    out_edges = {}
+    for u, w, a in edges:
+        x, y = new_id[find(u)], new_id[find(w)]
+        if x != y:
+            out_edges.setdefault((min(x, y), max(x, y)), a)
+    return [vert_px[r] for r in roots], [(x, y, a) for (x, y), a in sorted(out_edges.items())]
+
+
+def _drop_stub_ends(vert_px, edges, min_px):
+    """Drop dead-end vertices closer than ``min_px`` to their only neighbour (the leftovers
+    of tiny skeleton spurs next to a junction), repeatedly; renumber the rest."""
+    keep = set(range(len(vert_px)))
+    nbrs = {v: set() for v in keep}
+    for u, w, _ in edges:
+        nbrs[u].add(w)
+        nbrs[w].add(u)
+    changed = True
+    while changed and len(keep) > 2:
+        changed = False
+        for v in sorted(keep):
+            live = nbrs[v] & keep
+            if len(live) == 1:
+                w = next(iter(live))
+                if math.hypot(vert_px[v][0] - vert_px[w][0], vert_px[v][1] - vert_px[w][1]) \
+                        < min_px:
+                    keep.discard(v)
+                    changed = True
+                    if len(keep) <= 2:
+                        break
+    new_id = {v: i for i, v in enumerate(sorted(keep))}
+    return ([vert_px[v] for v in sorted(keep)],
+            [(min(new_id[u], new_id[w]), max(new_id[u], new_id[w]), a)
+             for u, w, a in edges if u in keep and w in keep])
 
 
 def _renumber(G, edge_paths):
