@@ -293,7 +293,8 @@ class GraphSimulator:
         occ = load_map(yaml_path)
         table_path = paths.initial_poses_file()
         pos, _ = start_positions(self.map_name, self.cfg.robots, self.g, occ,
-                                 self.cfg.initpos, load_initial_poses(table_path), table_path)
+                                 self.cfg.initpos, load_initial_poses(table_path), table_path,
+                                 alg=self.cfg.alg)
         return [self.g.nearest_vertex(x, y) for x, y in pos]
 
     @property
@@ -447,6 +448,10 @@ class GraphSimulator:
             self.writer = ResultWriter(self.prefix, RunInfo(
                 self.map_name, cfg.robots, cfg.initpos, cfg.gwait, cfg.comm_delay, "graph",
                 cfg.alg, "", hostname(), os.path.basename(self.prefix)))
+            from .startpos import write_start_poses
+            write_start_poses(self.prefix + "_start_poses.txt",
+                              [tuple(self.g.pos[v]) for v in self.start_vertices], self.g,
+                              f"--initpos {cfg.initpos}")
         try:
             for r in self.robots:
                 self._make_core(r)

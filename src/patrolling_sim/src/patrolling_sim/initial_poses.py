@@ -1,6 +1,7 @@
 """Robot start positions.
 
-Two sources, in this order:
+``--initpos optimised`` chooses start vertices for the algorithm instead
+(:mod:`patrolling_sim.startpos`). Otherwise two sources, in this order:
 
 1. ``params/initial_poses.txt`` (INI section ``[InitialPoses]``, keys ``<map>_<N>`` or
    ``<map>_<N>_<variant>``, values ``[x0, y0, x1, y1, ...]`` in metres), as in the original;
@@ -27,6 +28,8 @@ log = logging.getLogger(__name__)
 DEFAULT_YAW = math.pi / 2
 #: default robot radius of the simulator (m)
 ROBOT_RADIUS = 0.225
+#: ``--initpos`` value selecting :mod:`patrolling_sim.startpos`
+OPTIMISED = "optimised"
 #: minimal distance between two robot centres at start (m)
 MIN_SEPARATION = 0.6
 
@@ -193,8 +196,11 @@ def _fill_near_vertices(pgraph, occupancy, positions, n, clearance, min_sep):
 
 
 def start_positions(map_name, n, pgraph, occupancy, initpos="default", table=None,
-                    table_path=None):
+                    table_path=None, alg=None):
     """Start positions for ``n`` robots on ``map_name``.
+
+    ``initpos`` "optimised" picks start vertices for the algorithm ``alg``
+    (:mod:`patrolling_sim.startpos`); source is then "optimised for ALG: <method>".
 
     Uses the table entry ``<map>_<n>[_<initpos>]`` if present and valid. A named variant
     (``initpos`` != "default") must exist. A missing or invalid default entry falls back to
@@ -205,6 +211,9 @@ def start_positions(map_name, n, pgraph, occupancy, initpos="default", table=Non
     """
     if n < 1:
         raise PatrolInputError(f"team size must be >= 1, got {n}")
+    if initpos == OPTIMISED:
+        from .startpos import optimised_start_positions
+        return optimised_start_positions(pgraph, occupancy, n, alg, map_name)
     key = table_key(map_name, n, initpos)
     entry = (table or {}).get(key)
     where = table_path or "initial poses table"

@@ -8,7 +8,8 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     robots       team size N >= 1                                    required
     alg          algorithm short name (RAND, CR, HCR, HPCC, CGG, MSP, GBS, SEBS, CBLS,
                  DTAG, DTAP, or any registered strategy)             required
-    initpos      "default" or a lettered variant of params/initial_poses.txt ("a", "b", ...)
+    initpos      "default", a lettered variant of params/initial_poses.txt ("a", "b", ...) or
+                 "optimised" (start vertices chosen for the algorithm, patrolling_sim.startpos)
     loc          AMCL | fake_localization                            (AMCL)
     nav          spqrel_nav_lite | ros | abstract                    (spqrel_nav_lite)
                  abstract: no simulator and no navigation; one node moves the robots in
@@ -185,7 +186,8 @@ class ExperimentConfig:
         occ, G = paths.load_map_bundle(self.map)
         table_path = paths.initial_poses_file()
         pos, _ = start_positions(paths.map_name(self.map), self.robots, PatrolGraph(G), occ,
-                                 self.initpos, load_initial_poses(table_path), table_path)
+                                 self.initpos, load_initial_poses(table_path), table_path,
+                                 alg=self.alg)
         return pos
 
     @property

@@ -357,6 +357,9 @@ class Experiment:
         cfg = self.cfg
         positions = cfg.start_positions()
         self.prefix = claim_prefix(cfg)
+        from ..startpos import write_start_poses
+        write_start_poses(self.prefix + "_start_poses.txt", positions, cfg.map,
+                          f"--initpos {cfg.initpos}")
         self.log_dir = self.prefix + "_logs"
         os.makedirs(self.log_dir, exist_ok=True)
         snap = None

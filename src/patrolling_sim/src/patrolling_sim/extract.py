@@ -1,0 +1,557 @@
+"""Automatic patrol-graph extraction from an occupancy grid (map_server map).
+
+Pipeline (see docs/graph_extraction.md for the choices and the measured results):
+
+1. **Usable space**: free cells whose clearance (distance to the nearest occupied, unknown or
+   off-map cell, :attr:`OccupancyMap.clearance`) is at least ``robot_radius + margin`` --
+   where the robot's centre can stand. Its 8-connected pieces are found; pieces smaller than
+   a robot footprint are noise and ignored. If more than one piece remains the free space is
+   disconnected: :func:`extract_graph` fails with one line naming the pieces (area, centre in
+   metres), unless ``largest=True``, which keeps the largest piece and lists the others in
+   ``ExtractionResult.dropped``.
+2. **Skeleton**: scikit-image's ``skeletonize`` of the usable piece (holes smaller than
+   ``hole_area`` -- specks of sensor noise -- filled first, so they do not create loops).
+3. **Spur pruning**: the skeleton is split into branches between junctions and end points. A
+   dead-end branch is dropped when it reaches less than ``min_dead_end`` metres beyond the
+   free disc around its junction (``branch length - clearance at the junction``): that removes
+   the branches the medial axis grows into room corners and wall bumps, and keeps dead-end
+   corridors and rooms behind doors. One pass over the original skeleton, then the pixel graph
+   is rebuilt.
+4. **Vertices**: junctions (a cluster of junction pixels is one vertex; junctions closer than
+   ``merge`` metres along a branch are merged), dead ends, and points every ``spacing``
+   metres (equally spaced along each branch, ``round(length / spacing)`` pieces).
+5. **Edges** join consecutive vertices of a branch. The cost is the length of the shortest
+   collision-free path between the two vertices in the usable space: an 8-connected
+   geometric shortest path (scikit-image ``MCP_Geometric``) shortened by string pulling (each
+   point joined to the farthest later point visible through usable cells), in pixels as the
+   ``.graph`` format wants, rounded to an integer.
+
+Everything is deterministic: no random numbers, ties broken by pixel order.
+"""
+import math
+from dataclasses import dataclass, field
+from typing import List, Tuple
+
+import networkx as nx
+import numpy as np
+
+from .errors import PatrolInputError
+from .graph import DIRECTIONS
+from .initial_poses import ROBOT_RADIUS
+from .mapio import FREE
+
+#: default extra clearance (m) on top of the robot radius
+DEFAULT_MARGIN = 0.1
+#: default distance (m) between vertices along a corridor; the shipped graphs' mean edge
+#: length is 3.0-5.7 m (8 m on the coarse 'example'), see docs/graph_extraction.md
+DEFAULT_SPACING = 4.0
+#: default minimum reach (m) of a dead-end branch beyond the free disc at its junction
+DEFAULT_MIN_DEAD_END = 1.0
+
+#: usable pieces smaller than this share of the largest one are pockets, not places to patrol
+POCKET_SHARE = 0.1
+
+_NB8 = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+@dataclass
+class ExtractionParams:
+    robot_radius: float = ROBOT_RADIUS
+    margin: float = DEFAULT_MARGIN
+    spacing: float = DEFAULT_SPACING
+    min_dead_end: float = DEFAULT_MIN_DEAD_END
+    largest: bool = False
+
+    def validate(self):
+        if not (self.spacing > 0 and math.isfinite(self.spacing)):
+            raise PatrolInputError(f"argument --spacing: must be > 0 metres, got {self.spacing:g}")
+        if not (self.min_dead_end >= 0 and math.isfinite(self.min_dead_end)):
+            raise PatrolInputError(
+                f"argument --min-dead-end: must be >= 0 metres, got {self.min_dead_end:g}")
+        if not (self.robot_radius > 0 and math.isfinite(self.robot_radius)):
+            raise PatrolInputError(
+                f"argument --robot-radius: must be > 0 metres, got {self.robot_radius:g}")
+        if not (self.margin >= 0 and math.isfinite(self.margin)):
+            raise PatrolInputError(f"argument --margin: must be >= 0 metres, got {self.margin:g}")
+        return self
+
+    @property
+    def clearance(self):
+        return self.robot_radius + self.margin
+
+
+@dataclass
+class ExtractionResult:
+    graph: nx.MultiDiGraph
+    usable: np.ndarray                    # (h, w) bool, row 0 = bottom: the kept piece
+    skeleton: np.ndarray                  # (h, w) bool, pruned skeleton
+    dropped: List[Tuple[float, float, float]] = field(default_factory=list)  # area, x, y
+    edge_paths: dict = field(default_factory=dict)  # (u, w) -> [(col, row), ...] pulled path
+
+
+# ----------------------------------------------------------------------------- usable space
+def usable_space(occ, clearance):
+    """Boolean (h, w) mask of cells where the robot centre fits (row 0 = bottom)."""
+    return (occ.data == FREE) & (occ.clearance >= clearance)
+
+
+def _pieces(mask, min_cells):
+    """Labels of the 8-connected pieces of ``mask`` with at least ``min_cells`` cells,
+    largest first (ties: lowest label)."""
+    from scipy import ndimage
+    lab, n = ndimage.label(mask, structure=np.ones((3, 3), int))
+    if n == 0:
+        return lab, []
+    sizes = np.bincount(lab.ravel())[1:]
+    keep = [i + 1 for i in np.argsort(-sizes, kind="stable") if sizes[i] >= min_cells]
+    return lab, keep
+
+
+def _select_pieces(occ, lab, pieces):
+    """Split the pieces into (kept, ignored), kept largest first.
+
+    Ignored: pieces *outside the building* -- their free-space component touches the image
+    border, or their outline encloses another piece at least half their size (a ring of free
+    space drawn around the walls) -- as long as some piece is not outside; then *pockets*: pieces under
+    ``POCKET_SHARE`` of the largest remaining one (closets, gaps behind furniture, specks).
+    """
+    from scipy import ndimage
+    free_lab, _ = ndimage.label(occ.data == FREE, structure=np.ones((3, 3), int))
+    border = set(np.unique(np.concatenate([free_lab[0], free_lab[-1], free_lab[:, 0],
+                                           free_lab[:, -1]]))) - {0}
+    outside = []
+    for k in pieces:
+        mask = lab == k
+        r, c = np.argwhere(mask)[0]
+        if free_lab[r, c] in border:
+            outside.append(k)
+            continue
+        holes = ndimage.binary_fill_holes(mask) & ~mask
+        if any((holes & (lab == j)).any() and (lab == j).sum() >= mask.sum() / 2
+               for j in pieces if j != k):
+            outside.append(k)
+    inside = [k for k in pieces if k not in outside]
+    if not inside:
+        inside, outside = pieces, []
+    sizes = {k: int((lab == k).sum()) for k in inside}
+    big = max(sizes.values())
+    kept = [k for k in inside if sizes[k] >= POCKET_SHARE * big]
+    return kept, [k for k in pieces if k not in kept]
+
+
+def _describe_piece(lab, k, occ):
+    from scipy import ndimage
+    rows, cols = np.nonzero(lab == k)
+    cy, cx = ndimage.center_of_mass(lab == k)
+    x, y = occ.cell_to_world(cx, cy)
+    return len(rows) * occ.resolution ** 2, x, y
+
+
+# ------------------------------------------------------------------------- skeleton graph
+def _pixel_graph(skel):
+    """networkx Graph of skeleton pixels (row, col), 8-connected, weights 1 or sqrt(2).
+    Diagonal links that duplicate a 4-connected detour are left out (no tiny triangles)."""
+    G = nx.Graph()
+    pts = list(zip(*np.nonzero(skel)))
+    G.add_nodes_from(pts)
+    s = set(pts)
+    for r, c in pts:
+        for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+            q = (r + dr, c + dc)
+            if q not in s:
+                continue
+            if dr and dc and ((r + dr, c) in s or (r, c + dc) in s):
+                continue
+            G.add_edge((r, c), q, weight=math.hypot(dr, dc))
+    return G
+
+
+def _branches(P):
+    """Split a pixel graph into branches: chains of degree-2 pixels between 'node' pixels
+    (degree != 2). Returns (nodes, branches); each branch is a list of pixels from one node to
+    another (both included). A pure cycle gets its lowest pixel as a node."""
+    nodes = sorted(p for p in P.nodes if P.degree(p) != 2)
+    for comp in nx.connected_components(P):
+        if not any(P.degree(p) != 2 for p in comp):
+            nodes.append(min(comp))
+    nodes = sorted(set(nodes))
+    node_set = set(nodes)
+    seen_edges = set()
+    branches = []
+    for a in nodes:
+        for b in sorted(P.neighbors(a)):
+            if (a, b) in seen_edges:
+                continue
+            path = [a, b]
+            seen_edges.add((a, b))
+            seen_edges.add((b, a))
+            prev, cur = a, b
+            while cur not in node_set:
+                nxt = [q for q in sorted(P.neighbors(cur)) if q != prev]
+                if not nxt:
+                    break
+                prev, cur = cur, nxt[0]
+                seen_edges.add((prev, cur))
+                seen_edges.add((cur, prev))
+                path.append(cur)
+            branches.append(path)
+    return nodes, branches
+
+
+def _length(path):
+    return sum(math.hypot(a[0] - b[0], a[1] - b[1]) for a, b in zip(path, path[1:]))
+
+
+def _prune(skel, clearance_px, min_dead_end_px):
+    """Remove dead-end branches reaching less than ``min_dead_end_px`` beyond the free disc
+    of their junction (one pass; see the module docstring)."""
+    P = _pixel_graph(skel)
+    nodes, branches = _branches(P)
+    deg = dict(P.degree())
+    out = skel.copy()
+    if len(branches) <= 1:
+        return out
+    for br in branches:
+        a, b = br[0], br[-1]
+        ends = [p for p in (a, b) if deg[p] == 1]
+        if len(ends) != 1:
+            continue
+        junction = b if ends[0] == a else a
+        if deg[junction] < 3:
+            continue
+        if _length(br) - clearance_px[junction] < min_dead_end_px:
+            for p in br:
+                if p != junction:
+                    out[p] = False
+    # removing a spur can leave a junction pixel with a 1-pixel stub: skeletonize again
+    from skimage.morphology import skeletonize
+    return skeletonize(out)
+
+
+def _merge_close_nodes(P, nodes, branches, merge_px):
+    """Group nodes joined by a branch shorter than ``merge_px`` (and adjacent node pixels):
+    each group becomes one vertex."""
+    U = nx.Graph()
+    U.add_nodes_from(nodes)
+    for br in branches:
+        if br[0] != br[-1] and _length(br) < merge_px and P.degree(br[0]) != 1 \
+                and P.degree(br[-1]) != 1:
+            U.add_edge(br[0], br[-1])
+    groups = [sorted(g) for g in nx.connected_components(U)]
+    groups.sort()
+    return groups
+
+
+# ------------------------------------------------------------------------ shortest paths
+def _visible(usable, a, b):
+    """True if the segment between pixel centres a=(r, c) and b lies in usable cells
+    (sampled every 0.25 cell)."""
+    n = int(math.ceil(max(abs(b[0] - a[0]), abs(b[1] - a[1])) * 4)) + 1
+    rr = np.rint(np.linspace(a[0], b[0], n)).astype(int)
+    cc = np.rint(np.linspace(a[1], b[1], n)).astype(int)
+    return bool(usable[rr, cc].all())
+
+
+def pull_string(usable, path):
+    """Shorten a pixel path: from each kept point jump to the farthest later point it sees
+    (scanning back from the end), then drop any point whose neighbours see each other."""
+    out = [path[0]]
+    i = 0
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not _visible(usable, path[i], path[j]):
+            j -= 1
+        out.append(path[j])
+        i = j
+    k = 1
+    while k < len(out) - 1:
+        if _visible(usable, out[k - 1], out[k + 1]):
+            del out[k]
+            k = max(1, k - 1)
+        else:
+            k += 1
+    return out
+
+
+def shortest_path(usable, a, b):
+    """Shortest collision-free path between pixels a and b (row, col) through ``usable``:
+    (length_px, pulled path) or (inf, None).
+
+    The search runs in a window around a and b that grows until it provably holds the path
+    (every point p of a path of length l from a to b has |pa| + |pb| <= l), so the result
+    depends only on ``usable`` and the pair {a, b}: the extractor and :func:`check_graph`
+    agree."""
+    if tuple(b) < tuple(a):
+        length, path = shortest_path(usable, b, a)
+        return length, (None if path is None else path[::-1])
+    h, w = usable.shape
+    straight = math.hypot(a[0] - b[0], a[1] - b[1])
+    extra = int(max(8, straight / 2))
+    while True:
+        length, path = _window_path(usable, a, b, extra)
+        full = extra >= h + w
+        if path is None:
+            if full:
+                return math.inf, None
+        elif full or (length - straight) / 2 + 2 <= extra:
+            return length, path
+        extra = min(h + w, max(2 * extra, int((length - straight) / 2) + 3
+                               if path is not None else 2 * extra))
+
+
+def _window_path(usable, a, b, extra):
+    from skimage.graph import MCP_Geometric
+    h, w = usable.shape
+    r0, r1 = max(0, min(a[0], b[0]) - extra), min(h, max(a[0], b[0]) + extra + 1)
+    c0, c1 = max(0, min(a[1], b[1]) - extra), min(w, max(a[1], b[1]) + extra + 1)
+    win = usable[r0:r1, c0:c1]
+    m = MCP_Geometric(np.where(win, 1.0, np.inf), fully_connected=True)
+    sa, sb = (a[0] - r0, a[1] - c0), (b[0] - r0, b[1] - c0)
+    cum, _ = m.find_costs([sa], [sb])
+    if not np.isfinite(cum[sb]):
+        return math.inf, None
+    tb = [(r + r0, c + c0) for r, c in m.traceback(sb)]
+    pulled = pull_string(usable, tb)
+    return _length(pulled), pulled
+
+
+def direction(dx, dy):
+    """Compass direction of a vector in pixel coordinates (y up): N, NE, E, ..."""
+    ang = math.degrees(math.atan2(dx, dy)) % 360.0     # 0 = N, 90 = E
+    return DIRECTIONS[int((ang + 22.5) // 45) % 8]
+
+
+# ----------------------------------------------------------------------------- extraction
+def extract_graph(occ, params=None, name="extracted"):
+    """Extract a patrol graph from an :class:`~patrolling_sim.mapio.OccupancyMap`.
+
+    Returns:
+        :class:`ExtractionResult` whose ``graph`` is a MultiDiGraph as
+        :func:`patrolling_sim.graph.parse_graph` builds it (header = the map's size,
+        resolution and origin).
+
+    Raises:
+        PatrolInputError: one line: no free cell, no space wide enough for the robot,
+            disconnected free space (unless ``params.largest``), bad parameters.
+    """
+    from scipy import ndimage
+    from skimage.morphology import remove_small_holes, skeletonize
+    p = (params or ExtractionParams()).validate()
+    where = occ.yaml_path or name
+    res = occ.resolution
+    if not (occ.data == FREE).any():
+        raise PatrolInputError(f"{where}: the map has no free cell (nothing to patrol)")
+    usable_all = usable_space(occ, p.clearance)
+    footprint = math.pi * p.clearance ** 2 / res ** 2
+    lab, pieces = _pieces(usable_all, max(4, int(footprint)))
+    if not pieces:
+        raise PatrolInputError(
+            f"{where}: no free space is wide enough for the robot (clearance "
+            f"{p.clearance:.3f} m = radius {p.robot_radius:g} + margin {p.margin:g})")
+    pieces, ignored = _select_pieces(occ, lab, pieces)
+    dropped = [_describe_piece(lab, k, occ) for k in pieces[1:]]
+    if dropped and not p.largest:
+        desc = "; ".join(f"{a:.1f} m2 around ({x:.1f}, {y:.1f})"
+                         for a, x, y in [_describe_piece(lab, k, occ) for k in pieces])
+        raise PatrolInputError(
+            f"{where}: the robot-usable free space is in {len(pieces)} disconnected pieces "
+            f"({desc}); use --largest to extract the largest one")
+    dropped += [_describe_piece(lab, k, occ) for k in ignored]
+    usable = lab == pieces[0]
+    hole_cells = max(4, int(round((1.0 / res) ** 2)))      # specks under 1 m2
+    filled = remove_small_holes(usable, area_threshold=hole_cells)
+    skel = skeletonize(filled)
+    if skel.sum() == 0:           # a piece a few cells wide: its centre
+        cy, cx = [int(round(v)) for v in ndimage.center_of_mass(usable)]
+        skel[cy, cx] = True
+    clear_px = occ.clearance / res
+    skel = _prune(skel, clear_px, p.min_dead_end / res)
+
+    P = _pixel_graph(skel)
+    if P.number_of_nodes() == 0:
+        rows, cols = np.nonzero(usable)
+        P.add_node((int(rows[0]), int(cols[0])))
+    nodes, branches = _branches(P)
+    merge_px = max(2 * p.clearance, p.spacing / 3) / res
+    groups = _merge_close_nodes(P, nodes, branches, merge_px)
+    group_of = {q: gi for gi, g in enumerate(groups) for q in g}
+
+    # vertex pixels: a group's member with the largest clearance (first in pixel order)
+    vert_px = []
+    vid_of_group = {}
+    for gi, g in enumerate(groups):
+        best = max(g, key=lambda q: (clear_px[q], -q[0], -q[1]))
+        vid_of_group[gi] = len(vert_px)
+        vert_px.append(best)
+    edges = []              # (u, w) in vertex ids, each once
+    spacing_px = p.spacing / res
+    for br in branches:
+        ga, gb = group_of[br[0]], group_of[br[-1]]
+        L = _length(br)
+        if ga == gb and L < 3 * merge_px:
+            continue            # a link inside a junction cluster, a small loop
+        pieces_n = max(1, int(round(L / spacing_px)))
+        if ga == gb:
+            pieces_n = max(pieces_n, 3)     # a loop needs two intermediate vertices
+        cum = np.concatenate([[0.0], np.cumsum([math.hypot(a[0] - b[0], a[1] - b[1])
+                                               for a, b in zip(br, br[1:])])])
+        chain = [vid_of_group[ga]]
+        for k in range(1, pieces_n):
+            i = int(np.searchsorted(cum, L * k / pieces_n))
+            q = br[min(i, len(br) - 1)]
+            chain.append(len(vert_px))
+            vert_px.append(q)
+        chain.append(vid_of_group[gb])
+        for u, w in zip(chain, chain[1:]):
+            if u != w:
+                edges.append((min(u, w), max(u, w), L / pieces_n))
+    vert_px, edges = _contract_short(vert_px, edges, merge_px / 2, clear_px)
+    vert_px, edges = _drop_stub_ends(vert_px, edges, merge_px)
+    # snap vertices that fell on a filled hole back into usable space
+    if (~usable[tuple(np.array(vert_px).T)]).any():
+        _, (ir, ic) = ndimage.distance_transform_edt(~usable, return_indices=True)
+        vert_px = [q if usable[q] else (int(ir[q]), int(ic[q])) for q in vert_px]
+
+    # de-duplicate parallel edges (keep each pair once) and compute true path costs
+    best_edges = {}
+    for u, w, approx in edges:
+        if (u, w) not in best_edges:
+            best_edges[(u, w)] = approx
+    G = nx.MultiDiGraph(name=name, path=occ.yaml_path or name, width_px=occ.width,
+                        height_px=occ.height, resolution=res, offset_x=occ.origin[0],
+                        offset_y=occ.origin[1])
+    for v, (r, c) in enumerate(vert_px):
+        G.add_node(v, x_px=int(c), y_px=int(r), pos=(c * res + occ.origin[0],
+                                                     r * res + occ.origin[1]))
+    edge_paths = {}
+    adj = {v: [] for v in range(len(vert_px))}
+    for (u, w), approx in sorted(best_edges.items()):
+        a, b = vert_px[u], vert_px[w]
+        length, path = shortest_path(usable, a, b)
+        if path is None:
+            continue
+        cost = max(1, int(round(length)))
+        edge_paths[(u, w)] = [(c, r) for r, c in path]
+        edge_paths[(w, u)] = [(c, r) for r, c in reversed(path)]
+        adj[u].append((w, cost))
+        adj[w].append((u, cost))
+    for v in range(len(vert_px)):
+        r, c = vert_px[v]
+        for w, cost in sorted(adj[v]):
+            r2, c2 = vert_px[w]
+            G.add_edge(v, w, direction=direction(c2 - c, r2 - r), cost_px=cost,
+                       cost_m=cost * res)
+    G = _renumber(G, edge_paths)
+    return ExtractionResult(G[0], usable, skel, dropped, G[1])
+
+
+def _contract_short(vert_px, edges, min_px, clear_px):
+    """Merge the two ends of every edge shorter than ``min_px`` (straight line); the merged
+    vertex is the one with the larger clearance. Returns renumbered (vert_px, edges)."""
+    parent = list(range(len(vert_px)))
+
+    def find(v):
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+    for u, w, _ in sorted(edges):
+        a, b = find(u), find(w)
+        if a != b and math.hypot(vert_px[a][0] - vert_px[b][0],
+                                 vert_px[a][1] - vert_px[b][1]) < min_px:
+            keep, drop = (a, b) if (clear_px[vert_px[a]], -a) >= (clear_px[vert_px[b]], -b) \
+                else (b, a)
+            parent[drop] = keep
+    roots = sorted({find(v) for v in range(len(vert_px))})
+    new_id = {r: i for i, r in enumerate(roots)}
+    out_edges = {}
+    for u, w, a in edges:
+        x, y = new_id[find(u)], new_id[find(w)]
+        if x != y:
+            out_edges.setdefault((min(x, y), max(x, y)), a)
+    return [vert_px[r] for r in roots], [(x, y, a) for (x, y), a in sorted(out_edges.items())]
+
+
+def _drop_stub_ends(vert_px, edges, min_px):
+    """Drop dead-end vertices closer than ``min_px`` to their only neighbour (the leftovers
+    of tiny skeleton spurs next to a junction), repeatedly; renumber the rest."""
+    keep = set(range(len(vert_px)))
+    nbrs = {v: set() for v in keep}
+    for u, w, _ in edges:
+        nbrs[u].add(w)
+        nbrs[w].add(u)
+    changed = True
+    while changed and len(keep) > 2:
+        changed = False
+        for v in sorted(keep):
+            live = nbrs[v] & keep
+            if len(live) == 1:
+                w = next(iter(live))
+                if math.hypot(vert_px[v][0] - vert_px[w][0], vert_px[v][1] - vert_px[w][1]) \
+                        < min_px:
+                    keep.discard(v)
+                    changed = True
+                    if len(keep) <= 2:
+                        break
+    new_id = {v: i for i, v in enumerate(sorted(keep))}
+    return ([vert_px[v] for v in sorted(keep)],
+            [(min(new_id[u], new_id[w]), max(new_id[u], new_id[w]), a)
+             for u, w, a in edges if u in keep and w in keep])
+
+
+def _renumber(G, edge_paths):
+    """Number vertices top-left first (rows from the top, then columns), as a person reading
+    the picture would; returns (graph, edge_paths) renumbered."""
+    order = sorted(G.nodes, key=lambda v: (-G.nodes[v]["y_px"], G.nodes[v]["x_px"], v))
+    new = {old: i for i, old in enumerate(order)}
+    H = nx.MultiDiGraph(**G.graph)
+    for old in order:
+        H.add_node(new[old], **G.nodes[old])
+    for old in order:
+        outs = sorted(((new[w], d) for _, w, d in G.out_edges(old, data=True)),
+                      key=lambda t: t[0])
+        for w, d in outs:
+            H.add_edge(new[old], w, **d)
+    paths_ = {(new[u], new[w]): pth for (u, w), pth in edge_paths.items()}
+    return H, paths_
+
+
+# ------------------------------------------------------------------------------ init-map
+def init_map_yaml(image, resolution, origin=(0.0, 0.0, 0.0), out=None, force=False,
+                  negate=False):
+    """Write a map_server yaml for ``image`` (png/pgm/...: dark = occupied, light = free,
+    as map_server's trinary mode reads it) and return its path. The image is checked by
+    loading the written yaml with :func:`patrolling_sim.mapio.load_map`; on any problem
+    nothing is left behind.
+
+    Raises:
+        PatrolInputError: missing/undecodable image, resolution <= 0, non-finite origin,
+            existing yaml without ``force``.
+    """
+    import os
+    from .mapio import load_map, read_image
+    if not (resolution > 0 and math.isfinite(resolution)):
+        raise PatrolInputError(f"argument --resolution: must be > 0 metres per pixel, "
+                               f"got {resolution:g}")
+    if not all(math.isfinite(v) for v in origin):
+        raise PatrolInputError(f"argument --origin: must be finite numbers, got {origin}")
+    if not os.path.isfile(image):
+        raise PatrolInputError(f"{image}: image not found")
+    read_image(image, image)
+    out = out or os.path.splitext(image)[0] + ".yaml"
+    if os.path.exists(out) and not force:
+        raise PatrolInputError(f"argument --out: {out} exists (use --force to overwrite)")
+    rel = os.path.relpath(os.path.abspath(image), os.path.dirname(os.path.abspath(out)))
+    text = (f"image: {rel}\nresolution: {float(resolution)!r}\n"
+            f"origin: [{float(origin[0])!r}, {float(origin[1])!r}, {float(origin[2])!r}]\n"
+            f"negate: {int(bool(negate))}\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    tmp = f"{out}.tmp{os.getpid()}"
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+    try:
+        load_map(tmp)
+    except PatrolInputError:
+        os.remove(tmp)
+        raise
+    os.replace(tmp, out)
+    return out
