@@ -114,7 +114,7 @@ def read_log(stream, out):
             out.append((float(m.group(1)), float(m.group(2))))
 
 
-def run_one(base_env, map_name, n, mode, warmup, window, motion):
+def run_one(base_env, map_name, n, mode, warmup, window, motion, binary=BINARY):
     port = free_port()
     env = dict(base_env, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
     procs = []
@@ -138,7 +138,7 @@ def run_one(base_env, map_name, n, mode, warmup, window, motion):
                 time.sleep(0.1)
         yaml_path = os.path.join(ROOT, "maps", map_name, f"{map_name}.yaml")
         poses = start_poses(map_name, n)
-        node = spawn(["stdbuf", "-oL", BINARY, "__name:=stage2d", f"_map:={yaml_path}",
+        node = spawn(["stdbuf", "-oL", binary, "__name:=stage2d", f"_map:={yaml_path}",
                       f"_poses:={poses}", "_speedup:=0", "_log_period:=0.5",
                       "_cmd_vel_timeout:=1e9",
                       f"_scan_always:={'true' if mode == 'calc' else 'false'}"],
@@ -202,11 +202,13 @@ def main():
                          "(a standing robot reuses its wall ranges)")
     ap.add_argument("--warmup", type=float, default=3.0)
     ap.add_argument("--window", type=float, default=5.0)
+    ap.add_argument("--binary", default=BINARY,
+                    help="stage2d_node to measure (default: this workspace's build)")
     args = ap.parse_args()
     # SIGTERM -> SystemExit, so the finally blocks stop this run's master and node
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    if not os.access(BINARY, os.X_OK):
-        sys.exit(f"stage2d_bench: error: {BINARY} missing: run 'make build' first")
+    if not os.access(args.binary, os.X_OK):
+        sys.exit(f"stage2d_bench: error: --binary: {args.binary} missing: run 'make build' first")
     for n in args.robots:
         if n < 1:
             sys.exit(f"stage2d_bench: error: --robots: {n} is not >= 1")
@@ -222,7 +224,7 @@ def main():
                 if mode == "sub" and n > args.sub_max_robots:
                     continue
                 try:
-                    r = run_one(env, m, n, mode, args.warmup, args.window, args.motion)
+                    r = run_one(env, m, n, mode, args.warmup, args.window, args.motion, args.binary)
                 except (RuntimeError, subprocess.TimeoutExpired) as e:
                     print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | | | |", flush=True)
                     continue

@@ -9,7 +9,7 @@ import rostest
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap
 
-from patrolling_sim.mapio import load_map
+from spqrel_nav_lite.mapio import load_map
 
 
 class MapServerTest(unittest.TestCase):

@@ -23,7 +23,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Int32
 
-from patrolling_sim.mapio import FREE, load_map
+from spqrel_nav_lite.mapio import FREE, load_map
 from spqrel_nav_lite.geometry import quaternion_from_yaw
 
 RADIUS = 0.225

@@ -28,7 +28,7 @@ from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Int32, String
 from std_srvs.srv import Empty
 
-from patrolling_sim.mapio import load_map
+from spqrel_nav_lite.mapio import load_map
 from spqrel_nav_lite.planner import GlobalPlanner, path_length
 
 

@@ -4,22 +4,17 @@ Every error caused by user input (a file, a parameter, a command-line argument) 
 :class:`PatrolInputError` whose message is one line naming the culprit (file and line, or
 argument) and what is wrong with it. Command-line tools print that line and exit non-zero;
 no traceback is shown to the user.
+
+The base class and the map error come from the navigation package, whose map loader the core
+uses (``spqrel_nav_lite`` must not depend on this package): one ``except PatrolInputError``
+catches map, graph and every other input error.
 """
-
-
-class PatrolInputError(Exception):
-    """Bad user input. ``str(err)`` is a single self-contained line."""
-
-    def __init__(self, message):
-        super().__init__(" ".join(str(message).split("\n")))
+from spqrel_nav_lite.errors import InputError as PatrolInputError
+from spqrel_nav_lite.errors import MapFormatError  # noqa: F401
 
 
 class GraphFormatError(PatrolInputError):
     """A ``.graph`` file is malformed."""
-
-
-class MapFormatError(PatrolInputError):
-    """A map_server yaml or its image is missing or malformed."""
 
 
 class StaleRouteError(PatrolInputError):

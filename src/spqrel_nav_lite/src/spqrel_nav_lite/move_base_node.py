@@ -239,6 +239,7 @@ class MoveBase:
                 self.server.set_aborted(MoveBaseResult(), str(e))
                 return
             except rospy.ROSInterruptException:
+                self.end_at_shutdown()
                 return
             except Exception as e:     # never leave the robot driving on a bug
                 self.stop()
@@ -247,8 +248,20 @@ class MoveBase:
                 return
             self.stop()
             if nxt is None:
+                self.end_at_shutdown()
                 return
             goal_msg = nxt
+
+    def end_at_shutdown(self):
+        """Every goal ends in a terminal state: the control loop also ends when the node shuts
+        down (rospy.is_shutdown(), or a sleep raising ROSInterruptException) with the goal
+        still active; it is then aborted, before actionlib would do it with a warning."""
+        if not self.server.is_active():
+            return
+        try:
+            self.server.set_aborted(MoveBaseResult(), "navigation shutting down")
+        except Exception as e:  # the result publisher may already be closed: nothing to tell
+            rospy.logdebug("move_base: aborting the goal at shutdown: %r", e)
 
     def run_goal(self, goal_msg):
         """Drive to the goal. Returns a new goal if preempted by one, None when finished."""

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from patrolling_sim.mapio import FREE, OCCUPIED
+from .mapio import FREE, OCCUPIED
 
 from .geometry import normalize_angle
 

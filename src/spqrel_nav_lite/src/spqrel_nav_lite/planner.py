@@ -24,7 +24,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from patrolling_sim.mapio import FREE
+from .mapio import FREE
 
 
 WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search

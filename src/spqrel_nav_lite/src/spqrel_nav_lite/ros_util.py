@@ -5,8 +5,8 @@ import sys
 import numpy as np
 import rospy
 
-from patrolling_sim.errors import PatrolInputError
-from patrolling_sim.mapio import OccupancyMap, load_map
+from .errors import InputError
+from .mapio import OccupancyMap, load_map
 
 from .geometry import quaternion_from_yaw, yaw_from_quaternion
 
@@ -130,7 +130,7 @@ def get_map(ns="~"):
     if yaml_path:
         try:
             return load_map(yaml_path)
-        except PatrolInputError as e:
+        except InputError as e:
             fatal(f"parameter {param_name('map_yaml', ns)}: {e}")
     from nav_msgs.msg import OccupancyGrid
     from nav_msgs.srv import GetMap

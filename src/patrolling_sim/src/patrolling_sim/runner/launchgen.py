@@ -22,6 +22,7 @@ import os
 from xml.sax.saxutils import quoteattr
 
 from .. import paths
+from ..graph import load_graph
 
 
 #: ``nav`` value of the abstract world: no simulator, map server, localisation or move_base;
@@ -51,6 +52,14 @@ def _attr(v):
 
 def _num(v):
     return repr(float(v))
+
+
+def graph_drawing(graph_path):
+    """The patrol graph as the simulator draws it: ("x y x y ..." in metres, "u v u v ...")."""
+    G = load_graph(graph_path, warn=False)
+    xy = " ".join(f"{G.nodes[v]['pos'][0]:.4f} {G.nodes[v]['pos'][1]:.4f}" for v in sorted(G.nodes))
+    edges = sorted({(min(u, w), max(u, w)) for u, w in G.edges()})
+    return xy, " ".join(f"{u} {w}" for u, w in edges)
 
 
 def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi / 2,
@@ -94,7 +103,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
         a(f"    <arg name=\"poses\" value={_attr(poses)}/>")
         a(f"    <arg name=\"speedup\" value=\"{_num(cfg.speedup)}\"/>")
         a(f"    <arg name=\"gui\" value=\"{str(cfg.gui_sim).lower()}\"/>")
-        a(f"    <arg name=\"graph_file\" value={_attr(graph_path)}/>")
+        graph_xy, graph_edges = graph_drawing(graph_path)
+        a(f"    <arg name=\"graph_vertices\" value={_attr(graph_xy)}/>")
+        a(f"    <arg name=\"graph_edges\" value={_attr(graph_edges)}/>")
         a(f"    <arg name=\"seed\" value=\"{int(cfg.seed)}\"/>")
         if snapshot_dir:
             a(f"    <arg name=\"snapshot_dir\" value={_attr(snapshot_dir)}/>")

@@ -1,0 +1,49 @@
+// Simulation loop: builds the simulator from its parameters, then runs it -- each step waits
+// for the commands of the driven robots, moves the world, publishes the state and the scans
+// that are due, and paces sim time against the wall clock (~speedup); it also reports its
+// status (~status topic, periodic log line).
+#pragma once
+
+#include <memory>
+#include <random>
+#include <vector>
+
+#include <ros/ros.h>
+
+#include "patrol_stage2d/config.h"
+#include "patrol_stage2d/laser.h"
+#include "patrol_stage2d/renderer.h"
+#include "patrol_stage2d/robot_ros.h"
+#include "patrol_stage2d/services.h"
+#include "patrol_stage2d/sim_clock.h"
+#include "patrol_stage2d/world.h"
+
+namespace patrol_stage2d {
+
+class SimulationLoop {
+ public:
+  SimulationLoop() : nh_(), pnh_("~") {}
+  void setup();  // throws InputError
+  void run();
+
+ private:
+  void step_once();
+  void publish();
+  void wait_for_commands();
+  double stale_command_fraction() const;
+  void publish_status(double rtf);
+
+  ros::NodeHandle nh_, pnh_;
+  SimConfig cfg_;
+  World world_;
+  std::unique_ptr<SimClock> clock_;
+  std::unique_ptr<Laser> laser_;
+  std::unique_ptr<RobotsRos> ros_;
+  std::unique_ptr<Renderer> renderer_;
+  std::unique_ptr<Services> services_;
+  ros::Publisher status_pub_;
+  double next_scan_ = 0, next_snapshot_ = 0;
+  long sync_waits_ = 0, sync_timeouts_ = 0;
+};
+
+}  // namespace patrol_stage2d

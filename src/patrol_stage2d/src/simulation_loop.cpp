@@ -1,0 +1,178 @@
+// Simulation loop: set-up, stepping, pacing and status of the simulator (simulation_loop.h).
+#include "patrol_stage2d/simulation_loop.h"
+
+#include <chrono>
+#include <sstream>
+#include <thread>
+
+#include <ros/callback_queue.h>
+#include <std_msgs/String.h>
+
+#include "patrol_stage2d/util.h"
+
+namespace patrol_stage2d {
+
+void SimulationLoop::setup() {
+  ParamReader p(pnh_);
+  std::string map_path = p.get<std::string>("map", "");
+  if (map_path.empty()) throw InputError("parameter ~map (map_server yaml path) is missing or empty");
+  world_.load_map(map_path);
+  cfg_ = read_config(p);
+  std::vector<double> poses = read_poses(p);
+  world_.check_start_poses(poses, cfg_.drive.radius);
+
+  std::vector<std::mt19937> rngs;  // per robot: odometry errors, then laser noise
+  world_.build(poses, cfg_, &rngs);
+  laser_.reset(new Laser(cfg_.laser, cfg_.drive.radius, cfg_.threads, rngs));
+  clock_.reset(new SimClock(cfg_.step));
+  ros_.reset(new RobotsRos(nh_, &world_.robots(), clock_.get(), cfg_.laser));
+  clock_->advertise(nh_);
+  status_pub_ = pnh_.advertise<std_msgs::String>("status", 10, true);
+  renderer_.reset(new Renderer(cfg_, world_.map(), world_.robots(), *laser_));
+  services_.reset(new Services(nh_, pnh_, &world_, cfg_.drive.radius, renderer_.get(), clock_.get()));
+  const LaserConfig& l = cfg_.laser;
+  ROS_INFO("stage2d: %zu robots, step %.3f s, speedup %g%s, laser %d beams %.1f deg %.1f m @ %.1f Hz",
+           world_.robots().size(), cfg_.step, cfg_.speedup, cfg_.speedup <= 0 ? " (as fast as possible)" : "",
+           l.samples, l.fov * 180 / M_PI, l.range_max, l.rate);
+}
+
+void SimulationLoop::step_once() {
+  for (Robot& r : world_.robots()) update_drive(&r, cfg_.drive, clock_->now(), cfg_.step);
+  world_.step(cfg_.step, cfg_.substeps);
+  clock_->advance();
+  for (Robot& r : world_.robots()) update_odometry(&r, cfg_.step);
+}
+
+void SimulationLoop::publish() {
+  clock_->publish();
+  ros_->publish_state();
+  const double now = clock_->now();
+  if (now + 1e-9 >= next_scan_) {
+    next_scan_ += 1.0 / cfg_.laser.rate;
+    if (next_scan_ < now) next_scan_ = now + 1.0 / cfg_.laser.rate;
+    std::vector<int> which;
+    for (const Robot& r : world_.robots())
+      if (cfg_.scan_always || ros_->scan_wanted(r.id) || renderer_->draws_lasers()) which.push_back(r.id);
+      else laser_->invalidate(r.id);
+    if (!which.empty()) laser_->compute(which, world_.robots(), world_.map());
+    ros_->publish_scans(which, *laser_);
+  }
+}
+
+void SimulationLoop::wait_for_commands() {
+  // A robot is waited for if its newest command arrived during the previous step (it is
+  // being driven at the step rate) but none has arrived since the last state was published.
+  // A controller that stops, or commands more slowly than the step, is not waited for after
+  // one missed step, so a dead node costs at most one timeout. A robot told to stand still
+  // is not waited for either: a controller that stopped it (goal reached, planning a new
+  // path) often sends nothing more for a while, and a late start costs one step at most.
+  if (cfg_.sync_timeout <= 0) return;
+  auto pending = [this]() {
+    const double now = clock_->now(), step = cfg_.step;
+    for (const Robot& r : world_.robots())
+      if (r.drive.last_cmd >= now - step - 1e-9 && r.drive.last_cmd < now - 1e-9 && r.drive.moving_command())
+        return true;
+    return false;
+  };
+  if (!pending()) return;
+  ++sync_waits_;
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                         std::chrono::duration<double>(cfg_.sync_timeout));
+  while (ros::ok() && pending()) {
+    if (std::chrono::steady_clock::now() >= deadline) {
+      ++sync_timeouts_;
+      return;
+    }
+    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
+  }
+}
+
+double SimulationLoop::stale_command_fraction() const {
+  long driven = 0, stale = 0;
+  for (const Robot& r : world_.robots()) {
+    driven += r.drive.driven_steps;
+    stale += r.drive.stale_steps;
+  }
+  return driven ? static_cast<double>(stale) / driven : 0.0;
+}
+
+void SimulationLoop::publish_status(double rtf) {
+  const std::vector<Robot>& robots = world_.robots();
+  std::ostringstream js;
+  double wall_now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  js << "{\"sim_time\": " << fmt("%.3f", clock_->now()) << ", \"wall_time\": " << fmt("%.3f", wall_now)
+     << ", \"steps\": " << clock_->steps() << ", \"rtf\": " << fmt("%.3f", rtf) << ", \"speedup\": " << cfg_.speedup
+     << ", \"robots\": " << robots.size() << ", \"scans_computed\": " << laser_->scans_computed()
+     << ", \"contacts\": [";
+  for (size_t i = 0; i < robots.size(); ++i) {
+    const ContactStats& c = robots[i].contacts;
+    js << (i ? ", " : "") << "{\"wall\": " << c.wall << ", \"robot\": " << c.robot
+       << ", \"touching\": " << (c.touching > 0 ? "true" : "false") << "}";
+  }
+  js << "], \"wall_contacts\": " << world_.contacts().wall << ", \"robot_contacts\": " << world_.contacts().robot
+     << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction())
+     << ", \"sync_waits\": " << sync_waits_ << ", \"sync_timeouts\": " << sync_timeouts_ << "}";
+  std_msgs::String m;
+  m.data = js.str();
+  status_pub_.publish(m);
+}
+
+void SimulationLoop::run() {
+  using Clock = std::chrono::steady_clock;
+  auto wall0 = Clock::now();
+  auto pace_wall = wall0;
+  double pace_sim = 0;
+  auto status_wall = wall0, log_wall = wall0, gui_wall = wall0;
+  double status_sim = 0, log_sim = 0;
+  double rtf = 0;
+  publish_status(0);
+  while (ros::ok()) {
+    ros::spinOnce();
+    wait_for_commands();
+    step_once();
+    publish();
+    const double sim_time = clock_->now();
+    if (cfg_.snapshot_period > 0 && sim_time + 1e-9 >= next_snapshot_) {
+      std::string p;
+      renderer_->write_snapshot(sim_time, &p);
+      next_snapshot_ += cfg_.snapshot_period;
+      if (next_snapshot_ < sim_time) next_snapshot_ = sim_time + cfg_.snapshot_period;
+    }
+    auto now = Clock::now();
+    if (cfg_.gui && std::chrono::duration<double>(now - gui_wall).count() >= 1.0 / 20) {
+      gui_wall = now;
+      renderer_->update_window(sim_time);
+    }
+    double since_status = std::chrono::duration<double>(now - status_wall).count();
+    if (since_status >= cfg_.status_period) {
+      rtf = (sim_time - status_sim) / since_status;
+      status_sim = sim_time;
+      status_wall = now;
+      publish_status(rtf);
+    }
+    double since_log = std::chrono::duration<double>(now - log_wall).count();
+    if (since_log >= cfg_.log_period) {
+      ROS_INFO("stage2d: sim time %.1f s, real-time factor %.2f (speedup %g), %zu robots, contacts wall %ld robot %ld, "
+               "stale commands %.1f%%, command waits %ld (timeouts %ld)",
+               sim_time, (sim_time - log_sim) / since_log, cfg_.speedup, world_.robots().size(), world_.contacts().wall,
+               world_.contacts().robot, 100.0 * stale_command_fraction(), sync_waits_, sync_timeouts_);
+      log_sim = sim_time;
+      log_wall = now;
+    }
+    // pacing: sim time runs ~speedup times as fast as the wall clock
+    if (cfg_.speedup > 0) {
+      auto target = pace_wall + std::chrono::duration_cast<Clock::duration>(
+                                    std::chrono::duration<double>((sim_time - pace_sim) / cfg_.speedup));
+      now = Clock::now();
+      if (target > now) {
+        std::this_thread::sleep_until(target);
+      } else if (std::chrono::duration<double>(now - target).count() > 0.5) {
+        // too far behind: do not try to catch up in a burst
+        pace_wall = now;
+        pace_sim = sim_time;
+      }
+    }
+  }
+}
+
+}  // namespace patrol_stage2d
