@@ -27,6 +27,7 @@ system) and only the client writes files: the usual result files in the usual tr
 (:mod:`patrolling_sim.metrics`), and ``runs.csv``, one row per run. See
 ``docs/campaigns.md``.
 """
+import asyncio
 import dataclasses
 import datetime
 import hashlib
@@ -58,6 +59,9 @@ TOP_KEYS = ("name", "mode", "fixed", "grid", "seeds")
 RESERVED = {"graph": ("results_dir",),
             "ros": ("results_dir", "rviz", "gui_sim", "record", "record_period")}
 STATE_DIR = "state"
+#: LibYAML's emitter when PyYAML has it (Debian's does): records are written per run
+_Dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+_Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 RESULTS_DIR = "results"
 
 
@@ -335,7 +339,7 @@ def load_state(out: str) -> Dict[str, dict]:
         for fn in sorted(os.listdir(d)):
             if fn.endswith(".yaml"):
                 with open(os.path.join(d, fn)) as f:
-                    rec = yaml.safe_load(f) or {}
+                    rec = yaml.load(f, Loader=_Loader) or {}
                 if "key" in rec:
                     state[rec["key"]] = rec
     return state
@@ -394,12 +398,11 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign) -> d
         metrics.update(_summary_from_info(info))
         vpath = os.path.join(out, dest_prefix + "_visits.csv")
         if os.path.isfile(vpath) and metrics.get("sim_duration"):
-            from .graph import PatrolGraph
-            n = PatrolGraph.load(paths.map_files(spec.config["map"])[1]).n
+            n = _vertex_count(spec.config["map"])
             m = compute_metrics(read_visits(vpath), n, metrics["sim_duration"])
             md = metrics_to_yaml_dict(m)
             _write_atomic(os.path.join(out, dest_prefix + "_metrics.yaml"),
-                          yaml.safe_dump(md, sort_keys=False))
+                          yaml.dump(md, Dumper=_Dumper, sort_keys=False))
             for k in ("time_avg_idleness", "worst_idleness", "time_avg_max_idleness",
                       "visit_frequency_mean", "visit_frequency_sd", "never_visited"):
                 metrics[k] = md[k]
@@ -415,8 +418,20 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign) -> d
     if result.get("log_tail") and record["status"] not in DONE_STATUSES:
         record["log_tail"] = result["log_tail"]
     _write_atomic(os.path.join(out, STATE_DIR, spec.key + ".yaml"),
-                  yaml.safe_dump(record, sort_keys=False))
+                  yaml.dump(record, Dumper=_Dumper, sort_keys=False))
     return record
+
+
+_VERTEX_COUNTS: Dict[str, int] = {}
+
+
+def _vertex_count(map_arg: str) -> int:
+    """Vertex count of a map's patrol graph (read once per map per client)."""
+    if map_arg not in _VERTEX_COUNTS:
+        from .graph import load_graph
+        _VERTEX_COUNTS[map_arg] = load_graph(paths.map_files(map_arg)[1], warn=False)\
+            .number_of_nodes()
+    return _VERTEX_COUNTS[map_arg]
 
 
 def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
@@ -518,7 +533,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
     Ctrl-C (or SIGTERM) stops cleanly: runs in progress are cancelled, every finished run's
     files and record are complete, and the next call resumes.
     """
-    from distributed import Client, LocalCluster
+    from distributed import Client, LocalCluster, wait
     os.makedirs(out, exist_ok=True)
     _write_atomic(os.path.join(out, "campaign.yaml"), yaml.safe_dump(campaign.raw,
                                                                     sort_keys=False))
@@ -568,22 +583,24 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                          f"done, {len(todo)} to run on {len(client.scheduler_info()['workers'])} "
                          f"worker(s)" + (f"; dashboard {link}" if link and cluster is None
                                         else "") + "\n")
+            # one map() call: Dask inspects the caller's source once per call, not per run
             if campaign.mode == "graph":
-                futs = {client.submit(run_graph_task, r.config, pure=False): r for r in todo}
+                flist = client.map(run_graph_task, [r.config for r in todo], pure=False)
             else:
-                root = paths.data_root()
-                futs = {client.submit(run_ros_task, r.config, root, pure=False,
-                                      resources={"experiment": 1} if cluster else None): r
-                        for r in todo}
+                flist = client.map(run_ros_task, [r.config for r in todo],
+                                   [paths.data_root()] * len(todo), pure=False,
+                                   resources={"experiment": 1} if cluster else None)
+            futs = dict(zip(flist, todo))
             progress = _Progress(len(todo), skipped, stream)
             n_workers = max(1, len(client.scheduler_info()["workers"]))
             collecting["on"] = True
             pending = list(futs)
             while pending and interrupted["sig"] is None:
-                ready = [f for f in pending if f.done()]
-                if not ready:
-                    time.sleep(0.05)
+                try:
+                    ready = wait(pending, timeout=0.5, return_when="FIRST_COMPLETED").done
+                except (TimeoutError, asyncio.TimeoutError):
                     continue
+                ready = [f for f in pending if f in ready]
                 for fut in ready:
                     pending.remove(fut)
                     spec = futs.pop(fut)
