@@ -134,3 +134,24 @@ def test_heuristic_tour_on_a_large_graph_is_close_to_the_grid_optimum():
     L, exact = best_tour_length(g)
     assert not exact
     assert 72.0 - 1e-9 <= L <= 72.0 * 1.05
+
+
+def test_graph_idleness_series_by_hand():
+    from patrolling_sim.metrics import graph_idleness_series
+    t, s = graph_idleness_series([(2.0, 0, 0), (4.0, 1, 1), (6.0, 0, 0)], 2, 10.0, step=2.0)
+    assert list(t) == [0, 2, 4, 6, 8, 10]
+    # vertex 0 idleness 0,0,2,0,2,4; vertex 1: 0,2,0,2,4,6
+    assert list(s) == pytest.approx([0, 1, 1, 1, 3, 5])
+
+
+def test_failure_impact_on_a_synthetic_curve():
+    from patrolling_sim.metrics import failure_impact
+    t = np.arange(0.0, 3601.0)
+    # 20 s before the failure at 1200 s; rises linearly to 30 s over 300 s; flat after
+    y = np.where(t < 1200, 20.0, np.minimum(30.0, 20.0 + (t - 1200) / 30.0))
+    f = failure_impact(t, y, 1200.0, 3600.0, window=600.0, smooth=1.0, band=0.1)
+    assert f.before == pytest.approx(20.0)
+    assert f.after == pytest.approx(30.0)
+    # within 10 % of 30 from 27 s on: 1200 + 210 s
+    assert f.settle_time == pytest.approx(211.0, abs=1.0)
+    assert f.after > f.before

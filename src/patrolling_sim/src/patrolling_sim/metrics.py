@@ -178,3 +178,65 @@ def metrics_to_yaml_dict(m: RunMetrics) -> dict:
             return int(x)
         return x
     return clean(m.to_dict())
+
+
+# ----------------------------------------------------------------------------- over time
+def graph_idleness_series(visits: Iterable[Tuple[float, int, int]], n_vertices: int,
+                          duration: float, step: float = 1.0):
+    """(times, mean over vertices of the instantaneous idleness at those times), sampled every
+    ``step`` s from 0 to ``duration``: the curve the report draws, and the input of
+    :func:`failure_impact`."""
+    times = np.arange(0.0, duration + 1e-9, step)
+    per_v: List[List[float]] = [[] for _ in range(n_vertices)]
+    for t, _r, v in visits:
+        per_v[int(v)].append(float(t))
+    total = np.zeros_like(times)
+    for ts in per_v:
+        ts = np.sort(np.asarray(ts))
+        k = np.searchsorted(ts, times, side="right")         # visits at or before each time
+        last = np.where(k > 0, ts[np.maximum(k - 1, 0)] if len(ts) else 0.0, 0.0)
+        total += times - last
+    return times, total / n_vertices
+
+
+@dataclass
+class FailureImpact:
+    """Graph idleness around one failure (s); see ``docs/metrics.md``."""
+    t_fail: float
+    before: float                  # time average over the window before the failure
+    after: float                   # time average over the settled part after it
+    settle_time: Optional[float]   # s after the failure until the smoothed curve stays within
+                                   # the band around `after`; None if it never does
+
+
+def failure_impact(times, series, t_fail: float, t_end: float, window: float = 600.0,
+                   smooth: float = 60.0, band: float = 0.1) -> FailureImpact:
+    """Impact of a failure at ``t_fail`` on the graph idleness ``series`` (from
+    :func:`graph_idleness_series`), up to ``t_end`` (the next failure or the end of the run).
+
+    ``before``: mean of the series over [t_fail - window, t_fail). ``after``: mean over the
+    last ``min(window, (t_end - t_fail) / 2)`` s before ``t_end`` (the settled level).
+    ``settle_time``: the first delay after which the series, smoothed by a moving average of
+    ``smooth`` s, stays within ``band`` (relative) of ``after`` until ``t_end``."""
+    times = np.asarray(times)
+    series = np.asarray(series)
+    pre = (times >= max(0.0, t_fail - window)) & (times < t_fail)
+    tail = min(window, (t_end - t_fail) / 2.0)
+    post = (times >= t_end - tail) & (times <= t_end)
+    before = float(series[pre].mean()) if pre.any() else float("nan")
+    after = float(series[post].mean()) if post.any() else float("nan")
+    sel = (times >= t_fail) & (times <= t_end)
+    ts, ys = times[sel], series[sel]
+    settle = None
+    if len(ys) and math.isfinite(after) and after > 0:
+        step = float(ts[1] - ts[0]) if len(ts) > 1 else 1.0
+        w = max(1, int(round(smooth / step)))
+        sm = np.convolve(ys, np.ones(w) / w, mode="same")
+        outside = np.abs(sm - after) > band * after
+        if not outside.any():
+            settle = 0.0
+        else:
+            last_out = int(np.nonzero(outside)[0][-1])
+            if last_out < len(ts) - 1 - w // 2:
+                settle = float(ts[last_out + 1] - t_fail)
+    return FailureImpact(float(t_fail), before, after, settle)
