@@ -180,3 +180,12 @@ def test_external_scheduler_gives_the_same_table(tmp_path):
                 pr.wait(timeout=20)
             except subprocess.TimeoutExpired:
                 os.killpg(pr.pid, signal.SIGKILL)
+
+
+def test_all_expands_to_every_map_and_algorithm(tmp_path):
+    from patrolling_sim import paths
+    from patrolling_sim.algorithms import names
+    camp = load_campaign(_write(tmp_path, {"grid": {"map": "all", "alg": "all"}}),
+                         code={"commit": "x", "dirty": False})
+    assert {r.config["map"] for r in camp.runs} == set(paths.available_maps())
+    assert {r.config["alg"] for r in camp.runs} == set(names())

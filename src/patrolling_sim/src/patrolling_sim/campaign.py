@@ -9,7 +9,7 @@ A *campaign file* (YAML) names the mode and the runs::
     grid:                      # every combination of these values is one run
       map: [grid, cumberland]
       robots: [2, 4]
-      alg: [CR, CGG]
+      alg: [CR, CGG]           # "all": every registered algorithm (map: all: every map)
     seeds: 3                   # shorthand for grid.seed = [0, 1, 2]
 
 The keys of ``fixed`` and ``grid`` are the fields of the mode's configuration
@@ -189,6 +189,14 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
         if "seed" in grid:
             raise PatrolInputError(f"{path}: seeds: give either seeds or grid.seed, not both")
         grid = dict(grid, seed=list(range(n)))
+    grid = dict(grid)
+    for k in ("map", "alg"):                   # "all": every shipped map / registered algorithm
+        if grid.get(k) == "all":
+            if k == "map":
+                grid[k] = paths.available_maps()
+            else:
+                from .algorithms import names
+                grid[k] = names()
     for k, values in grid.items():
         if not isinstance(values, list):
             raise PatrolInputError(f"{path}: grid.{k}: expected a list of values")
