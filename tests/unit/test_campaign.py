@@ -1,0 +1,191 @@
+"""Campaigns (patrolling_sim.campaign): validation of campaign files, a graph-mode campaign on
+a 2-worker LocalCluster interrupted and resumed, and the same campaign on a separately started
+Dask scheduler + 2 workers."""
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+import yaml
+
+from patrolling_sim.campaign import load_campaign, load_state
+from patrolling_sim.errors import PatrolInputError
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+SCRIPT = os.path.join(ROOT, "scripts", "campaign.py")
+SRC = os.path.join(ROOT, "src", "patrolling_sim", "src")
+CAMPAIGN = {"name": "t", "mode": "graph", "fixed": {"duration": 300},
+            "grid": {"map": ["grid", "1r5"], "robots": [2], "alg": ["CR", "CGG"]}, "seeds": 3}
+METRICS = ["idl_avg", "idl_max", "total_visits", "complete_cycles", "time_avg_idleness",
+           "worst_idleness"]
+
+
+def _write(tmp_path, data, name="c.yaml"):
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(data) if not isinstance(data, str) else data)
+    return str(p)
+
+
+def _env():
+    env = dict(os.environ, PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
+    env["PYTHONPATH"] = SRC
+    return env
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"colour": "red"}, "unknown key 'colour'"),
+    ({"grid": {"map": ["grid"], "robotz": [2]}}, "grid.robotz: unknown configuration key"),
+    ({"grid": {"map": ["grid"], "alg": []}}, "grid.alg: empty list"),
+    ({"grid": {"map": ["grid"], "robots": ["four"]}}, "grid.robots: expected an integer"),
+    ({"fixed": {"duration": "long"}}, "fixed.duration: expected a number"),
+    ({"grid": {"map": ["grid", "atlantis"]}}, "grid.map: unknown map 'atlantis'"),
+    ({"grid": {"map": ["grid"], "alg": ["NOPE"]}}, "alg=NOPE"),
+    ({"mode": "cloud"}, "mode: expected one of graph, ros"),
+    ({"seeds": 0}, "seeds: expected an integer >= 1"),
+])
+def test_bad_campaign_files_fail_with_one_line_naming_the_key(tmp_path, change, words):
+    data = dict(CAMPAIGN, **change)
+    with pytest.raises(PatrolInputError) as e:
+        load_campaign(_write(tmp_path, data))
+    msg = str(e.value)
+    assert words in msg and "\n" not in msg and "c.yaml" in msg
+
+
+def test_bad_campaign_file_cli_exit_2_nothing_written(tmp_path):
+    out = tmp_path / "out"
+    p = subprocess.run([sys.executable, SCRIPT, _write(tmp_path, "grid: [unclosed"),
+                        "--out", str(out)], capture_output=True, text=True, env=_env())
+    assert p.returncode == 2
+    assert p.stderr.count("\n") == 1 and "not valid YAML" in p.stderr
+    assert not out.exists()
+
+
+def test_keys_are_stable_and_cover_the_grid(tmp_path):
+    path = _write(tmp_path, CAMPAIGN)
+    a = load_campaign(path, code={"commit": "abc", "dirty": False})
+    b = load_campaign(path, code={"commit": "abc", "dirty": False})
+    c = load_campaign(path, code={"commit": "def", "dirty": False})
+    assert len(a.runs) == 2 * 2 * 3
+    assert [r.key for r in a.runs] == [r.key for r in b.runs]
+    assert not {r.key for r in a.runs} & {r.key for r in c.runs}     # code version in the key
+
+
+def _table(out):
+    df = pd.read_csv(os.path.join(out, "runs.csv")).set_index("key").sort_index()
+    return df
+
+
+def _measured(out, df):
+    """key -> text of the run's idleness and visits files (the measured data)."""
+    res = {}
+    for key, prefix in df["prefix"].items():
+        res[key] = tuple(open(os.path.join(out, prefix + s)).read()
+                         for s in ("_idleness.csv", "_visits.csv"))
+    return res
+
+
+def _info_count(out):
+    return sum(f.endswith("_info.csv") for _, _, fs in os.walk(os.path.join(out, "results"))
+               for f in fs)
+
+
+def test_interrupted_campaign_resumes_to_the_clean_result(tmp_path):
+    path = _write(tmp_path, CAMPAIGN)
+    clean, resumed = str(tmp_path / "clean"), str(tmp_path / "resumed")
+    cmd = [sys.executable, SCRIPT, path, "--workers", "2", "--no-report"]
+    p = subprocess.run(cmd + ["--out", clean], capture_output=True, text=True, env=_env(),
+                       timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+
+    # interrupt once some runs are stored (SIGINT as Ctrl-C), then resume
+    proc = subprocess.Popen(cmd + ["--out", resumed], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=_env())
+    state_dir = os.path.join(resumed, "state")
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if os.path.isdir(state_dir) and len(os.listdir(state_dir)) >= 3:
+            proc.send_signal(signal.SIGINT)
+            break
+        time.sleep(0.05)
+    out, _ = proc.communicate(timeout=300)
+    done_first = len(load_state(resumed))
+    if proc.returncode == 130:
+        assert "interrupted" in out and 3 <= done_first < 12
+    else:                     # the campaign finished before the signal could land
+        assert proc.returncode == 0 and done_first == 12
+    assert _info_count(resumed) == done_first               # complete files for every record
+    p = subprocess.run(cmd + ["--out", resumed], capture_output=True, text=True, env=_env(),
+                       timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert f"{done_first} already done" in p.stdout or done_first == 12
+    a, b = _table(clean), _table(resumed)
+    assert list(a.index) == list(b.index) and (b["status"] == "TIMEOUT").all()
+    pd.testing.assert_frame_equal(a[METRICS], b[METRICS])
+    assert _info_count(resumed) == 12                       # no run executed twice
+    assert _measured(clean, a) == _measured(resumed, b)     # seeded runs bit-identical
+    # nothing is left to do
+    p = subprocess.run(cmd + ["--out", resumed, "--dry-run"], capture_output=True, text=True,
+                       env=_env(), timeout=600)
+    assert p.returncode == 0 and p.stdout.count(" done ") == 12, p.stdout
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_external_scheduler_gives_the_same_table(tmp_path):
+    path = _write(tmp_path, dict(CAMPAIGN, seeds=1))
+    port = _free_port()
+    addr = f"tcp://127.0.0.1:{port}"
+    procs = []
+    try:
+        procs.append(subprocess.Popen(["/usr/bin/dask-scheduler", "--host", "127.0.0.1",
+                                       "--port", str(port), "--dashboard-address", ":0"],
+                                      env=_env(), stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL, start_new_session=True))
+        for k in range(2):
+            wd = tmp_path / f"worker{k}"
+            wd.mkdir()
+            procs.append(subprocess.Popen(["/usr/bin/dask-worker", addr, "--nthreads", "1",
+                                           "--local-directory", str(wd), "--no-dashboard"],
+                                          env=_env(), cwd=str(wd), stdout=subprocess.DEVNULL,
+                                          stderr=subprocess.DEVNULL, start_new_session=True))
+        ext, local = str(tmp_path / "ext"), str(tmp_path / "local")
+        p = subprocess.run([sys.executable, SCRIPT, path, "--scheduler", addr, "--no-report",
+                            "--out", ext], capture_output=True, text=True, env=_env(),
+                           timeout=600)
+        assert p.returncode == 0, p.stdout[-1000:] + p.stderr[-2000:]
+        p = subprocess.run([sys.executable, SCRIPT, path, "--workers", "2", "--no-report",
+                            "--out", local], capture_output=True, text=True, env=_env(),
+                           timeout=600)
+        assert p.returncode == 0, p.stderr[-2000:]
+        a, b = _table(ext), _table(local)
+        assert len(a) == 4
+        pd.testing.assert_frame_equal(a[METRICS], b[METRICS])
+        assert _measured(ext, a) == _measured(local, b)
+    finally:
+        for pr in procs:
+            try:
+                os.killpg(pr.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        for pr in procs:
+            try:
+                pr.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(pr.pid, signal.SIGKILL)
+
+
+def test_all_expands_to_every_map_and_algorithm(tmp_path):
+    from patrolling_sim import paths
+    from patrolling_sim.algorithms import names
+    camp = load_campaign(_write(tmp_path, {"grid": {"map": "all", "alg": "all"}}),
+                         code={"commit": "x", "dirty": False})
+    assert {r.config["map"] for r in camp.runs} == set(paths.available_maps())
+    assert {r.config["alg"] for r in camp.runs} == set(names())
