@@ -21,7 +21,8 @@ PACKAGES = ("patrolling_sim", "spqrel_nav_lite", "patrol_stage2d")
 PYTHON_KEYS = {
     "numpy": "python3-numpy", "scipy": "python3-scipy", "cv2": "python3-opencv",
     "yaml": "python3-yaml", "pandas": "python3-pandas", "matplotlib": "python3-matplotlib",
-    "networkx": "python3-networkx",
+    "networkx": "python3-networkx", "skimage": "python3-skimage",
+    "distributed": "python3-distributed",
 }
 ROS_PYTHON = {"rospy", "rostest", "rosgraph", "roslaunch", "genpy", "actionlib", "tf2_ros",
               "actionlib_msgs", "geometry_msgs", "move_base_msgs", "nav_msgs", "rosgraph_msgs",
