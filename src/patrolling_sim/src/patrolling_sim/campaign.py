@@ -266,17 +266,12 @@ def run_graph_task(config: dict) -> dict:
     file written (relative path -> text), the visit log included, plus provenance. Runs in a
     Dask worker process, which keeps its imports between runs."""
     from .graph_sim import GraphSimConfig, GraphSimulator
-    from .metrics import VISITS_HEADER
     t0 = datetime.datetime.now(datetime.timezone.utc)
     wall = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="campaign_") as tmp:
         sim = GraphSimulator(GraphSimConfig(**dict(config, results_dir=tmp)))
-        sim.monitor.visit_log = []
-        sim.run(write=True)
+        sim.run(write=True)                    # the writer keeps the visit log too
         prefix = os.path.relpath(sim.prefix, tmp)
-        lines = [VISITS_HEADER] + [f"{t:.3f};{r};{v}" for t, r, v in sim.monitor.visit_log]
-        with open(sim.prefix + "_visits.csv", "w") as f:
-            f.write("\n".join(lines) + "\n")
         files = _read_tree(tmp)
     t1 = datetime.datetime.now(datetime.timezone.utc)
     return {"prefix": prefix, "files": files, "status": sim.termination, "rc": 0,

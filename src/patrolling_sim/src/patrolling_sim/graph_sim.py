@@ -411,8 +411,10 @@ class GraphSimulator:
         r = self.monitor.visit(rid, v, self.t)
         if r is None:
             return
-        if r.idleness is not None and self.writer:
-            self.writer.idleness_row(self.t, rid, v, r.idleness, self.monitor.interferences)
+        if self.writer:
+            self.writer.visit_row(r.t, rid, v)
+            if r.idleness is not None:
+                self.writer.idleness_row(self.t, rid, v, r.idleness, self.monitor.interferences)
         if r.new_cycle:
             if self.writer:
                 self.writer.cycle_block(self.monitor.stats(self.t), time.monotonic() - self.wall0)

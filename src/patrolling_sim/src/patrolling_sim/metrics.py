@@ -22,9 +22,10 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .results import VISITS_HEADER
+
 #: percentiles of the idleness samples reported by :func:`compute_metrics`
 PERCENTILES = (50, 90, 95, 99)
-VISITS_HEADER = "Time;Robot;Node"
 
 
 @dataclass

@@ -108,9 +108,6 @@ class MonitorCore:
         self.cycles = 0
         #: robot id -> time since GO of its last visit report (the FAIL rule of 5.7)
         self.last_report: Dict[int, float] = {}
-        #: set to a list to record every visit after GO as (t since GO, robot, vertex): the
-        #: input of :mod:`patrolling_sim.metrics`
-        self.visit_log: Optional[List[tuple]] = None
 
     # -- handshake ----------------------------------------------------------------------
     def robot_ready(self, robot_id: int) -> bool:
@@ -141,8 +138,6 @@ class MonitorCore:
             return None
         t = self.elapsed(now)
         self.last_report[robot_id] = t
-        if self.visit_log is not None:
-            self.visit_log.append((t, robot_id, vertex))
         self.visits[vertex] += 1
         idl = None
         if self.visits[vertex] > 0:

@@ -20,6 +20,8 @@ from typing import List, Optional
 from .monitor_core import Stats
 
 IDLENESS_HEADER = "Time;Robot;Node;Idleness;Interferences"
+#: header of ``<prefix>_visits.csv`` (not a file of the original's)
+VISITS_HEADER = "Time;Robot;Node"
 TIMERESULTS_HEADER = "Time;Idleness min;Idleness avg;Idleness stddev;Idleness max;Interferences"
 #: statuses of field 14 (patrolling_sim.run_status explains each)
 TERMINATIONS = ("TIMEOUT", "CYCLES", "STOPPED", "FAIL", "ABORTED", "CRASHED", "INTERRUPTED")
@@ -133,6 +135,12 @@ class ResultWriter:
         self._time.flush()
         # results.txt exists from the start (empty until the first complete patrol cycle)
         open(prefix + "_results.txt", "a", encoding="utf-8").close()
+        # beyond the original's four files: every visit report after GO, the input of
+        # patrolling_sim.metrics (docs/metrics.md)
+        self._visits = open(prefix + "_visits.csv", "a", encoding="utf-8")
+        if self._visits.tell() == 0:
+            self._visits.write(VISITS_HEADER + "\n")
+        self._visits.flush()
         self.info_written = False
 
     def path(self, suffix: str) -> str:
@@ -142,6 +150,11 @@ class ResultWriter:
                      interferences: int) -> None:
         self._idl.write(f"{abs_time:.1f};{robot};{vertex};{idleness:.1f};{interferences}\n")
         self._idl.flush()
+
+    def visit_row(self, t_since_go: float, robot: int, vertex: int) -> None:
+        """One visit report (``<prefix>_visits.csv``: time since GO; robot; vertex)."""
+        self._visits.write(f"{t_since_go:.3f};{robot};{vertex}\n")
+        self._visits.flush()
 
     def time_row(self, stats: Stats) -> None:
         self._time.write(f"{stats.elapsed:.1f};{fmt1(stats.global_min)};"
@@ -164,7 +177,7 @@ class ResultWriter:
         return path
 
     def close(self) -> None:
-        for f in (self._idl, self._time):
+        for f in (self._idl, self._time, self._visits):
             if not f.closed:
                 f.close()
 

@@ -173,6 +173,7 @@ class Monitor:
         if r is None:
             rospy.logwarn("monitor: robot %d reported vertex %d outside the graph", rid, v)
             return
+        self.writer.visit_row(r.t, rid, v)
         if r.idleness is not None:
             self.writer.idleness_row(now, rid, v, r.idleness, self.core.interferences)
         rospy.loginfo("[%.1f] robot %d reached %d (%s), idleness %s, cycles %d", r.t, rid, v,
