@@ -51,7 +51,6 @@ DEFAULT_MIN_DEAD_END = 1.0
 #: usable pieces smaller than this share of the largest one are pockets, not places to patrol
 POCKET_SHARE = 0.1
 
-_NB8 = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
 
 @dataclass
@@ -112,8 +111,9 @@ def _select_pieces(occ, lab, pieces):
 
     Ignored: pieces *outside the building* -- their free-space component touches the image
     border, or their outline encloses another piece at least half their size (a ring of free
-    space drawn around the walls) -- as long as some piece is not outside; then *pockets*: pieces under
-    ``POCKET_SHARE`` of the largest remaining one (closets, gaps behind furniture, specks).
+    space drawn around the walls) -- as long as some piece is not outside; then *pockets*:
+    pieces under ``POCKET_SHARE`` of the largest remaining one (closets, gaps behind
+    furniture, specks).
     """
     from scipy import ndimage
     free_lab, _ = ndimage.label(occ.data == FREE, structure=np.ones((3, 3), int))
