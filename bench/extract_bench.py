@@ -53,7 +53,8 @@ def main():
         rows.append(row)
         if a.pictures:
             os.makedirs(a.pictures, exist_ok=True)
-            save_png(draw_graph(occ, PatrolGraph(G)), os.path.join(a.pictures, f"{m}-extracted.png"))
+            save_png(draw_graph(occ, PatrolGraph(G)),
+                     os.path.join(a.pictures, f"{m}-extracted.png"))
     head = (f"Graph extraction, default options ({platform.node()}, {datetime.date.today()}; "
             f"bench/extract_bench.py; extraction time = CPU seconds)\n\n")
     if a.out:

@@ -100,8 +100,9 @@ def test_extract_is_deterministic_and_refuses_to_overwrite(tmp_path):
     assert run_tool("extract", y, "--force").returncode == 0
     assert open(tmp_path / "p.graph").read() == first
     # spacing: more vertices along the corridor with a smaller spacing
-    assert run_tool("extract", y, "--out", str(tmp_path / "q.graph"), "--spacing", "1").returncode == 0
-    assert load_graph(str(tmp_path / "q.graph")).number_of_nodes() > \
+    q = str(tmp_path / "q.graph")
+    assert run_tool("extract", y, "--out", q, "--spacing", "1").returncode == 0
+    assert load_graph(q).number_of_nodes() > \
         load_graph(str(tmp_path / "p.graph")).number_of_nodes()
 
 

@@ -5,21 +5,25 @@ Pipeline (see docs/graph_extraction.md for the choices and the measured results)
 1. **Usable space**: free cells whose clearance (distance to the nearest occupied, unknown or
    off-map cell, :attr:`OccupancyMap.clearance`) is at least ``robot_radius + margin`` --
    where the robot's centre can stand. Its 8-connected pieces are found; pieces smaller than
-   a robot footprint are noise and ignored. If more than one piece remains the free space is
-   disconnected: :func:`extract_graph` fails with one line naming the pieces (area, centre in
-   metres), unless ``largest=True``, which keeps the largest piece and lists the others in
+   a robot footprint are noise, pieces outside the building and pockets are set aside
+   (:func:`_select_pieces`). If more than one piece remains the free space is disconnected:
+   :func:`extract_graph` fails with one line naming the pieces (area, centre in metres),
+   unless ``largest=True``, which keeps the largest piece. Set-aside pieces are listed in
    ``ExtractionResult.dropped``.
-2. **Skeleton**: scikit-image's ``skeletonize`` of the usable piece (holes smaller than
-   ``hole_area`` -- specks of sensor noise -- filled first, so they do not create loops).
+2. **Skeleton**: scikit-image's ``skeletonize`` of the usable piece (holes under 1 m2 --
+   specks of sensor noise -- filled first, so they do not create loops).
 3. **Spur pruning**: the skeleton is split into branches between junctions and end points. A
    dead-end branch is dropped when it reaches less than ``min_dead_end`` metres beyond the
    free disc around its junction (``branch length - clearance at the junction``): that removes
    the branches the medial axis grows into room corners and wall bumps, and keeps dead-end
    corridors and rooms behind doors. One pass over the original skeleton, then the pixel graph
    is rebuilt.
-4. **Vertices**: junctions (a cluster of junction pixels is one vertex; junctions closer than
-   ``merge`` metres along a branch are merged), dead ends, and points every ``spacing``
-   metres (equally spaced along each branch, ``round(length / spacing)`` pieces).
+4. **Vertices**: junctions (a cluster of junction pixels, or junctions joined by a branch
+   shorter than the merge distance max(2 clearance, spacing / 3), is one vertex), dead ends,
+   and points every ``spacing`` metres (equally spaced along each branch,
+   ``round(length / spacing)`` pieces). Then vertices joined by an edge shorter than half the
+   merge distance are merged, loops shorter than three merge distances dropped, and dead ends
+   closer than it to their neighbour removed.
 5. **Edges** join consecutive vertices of a branch. The cost is the length of the shortest
    collision-free path between the two vertices in the usable space: an 8-connected
    geometric shortest path (scikit-image ``MCP_Geometric``) shortened by string pulling (each
@@ -51,7 +55,6 @@ DEFAULT_MIN_DEAD_END = 1.0
 #: usable pieces smaller than this share of the largest one are pockets, not places to patrol
 POCKET_SHARE = 0.1
 
-_NB8 = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
 
 @dataclass
@@ -112,8 +115,9 @@ def _select_pieces(occ, lab, pieces):
 
     Ignored: pieces *outside the building* -- their free-space component touches the image
     border, or their outline encloses another piece at least half their size (a ring of free
-    space drawn around the walls) -- as long as some piece is not outside; then *pockets*: pieces under
-    ``POCKET_SHARE`` of the largest remaining one (closets, gaps behind furniture, specks).
+    space drawn around the walls) -- as long as some piece is not outside; then *pockets*:
+    pieces under ``POCKET_SHARE`` of the largest remaining one (closets, gaps behind
+    furniture, specks).
     """
     from scipy import ndimage
     free_lab, _ = ndimage.label(occ.data == FREE, structure=np.ones((3, 3), int))

@@ -57,14 +57,13 @@ class _NullDriver:
 def strategy_kind(alg):
     """'cyclic', 'partition' or 'other' for a registered algorithm name."""
     from .algorithms import REGISTRY
-    from .algorithms.cgg import RouteFollower
     from .algorithms.msp import MultilevelSubgraphPatrolling
     cls = REGISTRY.get(alg)
     if cls is None:
         raise PatrolInputError(f"argument --alg: unknown algorithm '{alg}'")
     if issubclass(cls, MultilevelSubgraphPatrolling):
         return "partition"
-    if issubclass(cls, RouteFollower):
+    if callable(getattr(cls, "build_route", None)):     # follows one closed route (CGG, ...)
         return "cyclic"
     return "other"
 
