@@ -18,21 +18,36 @@ from patrolling_sim.startpos import (kcentre_start_vertices, optimised_start_ver
 
 
 def worst_idleness(alg, n, initpos, duration=1500.0):
+    """Worst idleness in the issue's world: straight-line travel at 1 m/s, no goal wait,
+    no interference (the abstract world of the original's reference runs)."""
     cfg = GraphSimConfig(map="grid", robots=n, alg=alg, duration=duration, seed=1,
-                         initpos=initpos, gwait=0.0, speed=1.0)
+                         initpos=initpos, gwait=0.0, speed=1.0, travel="euclidean",
+                         interference=False)
     return GraphSimulator(cfg).run(write=False).global_max
 
 
-def test_cgg_grid_four_robots_near_even_spacing():
+def test_cyclic_tour_grid_four_robots_near_even_spacing():
+    # CGG_TSP follows one closed tour: evenly spaced robots meet L / (k v) at worst
+    pg = PatrolGraph.load(paths.map_files("grid")[1])
+    L = route_cost(pg, probe_route(pg, "CGG_TSP", 4, "grid", 0)) * pg.resolution
+    opt = worst_idleness("CGG_TSP", 4, "optimised")
+    assert opt <= 1.15 * L / 4, (opt, L)
+    assert worst_idleness("CGG_TSP", 4, "default") > 2 * L / 4     # the bunched start it fixes
+
+
+def test_original_cgg_route_grid_four_robots():
+    # the original's CGG walks a Hamiltonian path forth and back and starts every robot at
+    # the first occurrence of its vertex: only the forward half can hold a start, so the
+    # best spread is about twice L / (k v) -- still better than the default start
     pg = PatrolGraph.load(paths.map_files("grid")[1])
     L = route_cost(pg, probe_route(pg, "CGG", 4, "grid", 0)) * pg.resolution
     opt = worst_idleness("CGG", 4, "optimised")
-    assert opt <= 1.15 * L / 4, (opt, L)
-    assert worst_idleness("CGG", 4, "default") > 2 * L / 4     # the bunched start it fixes
+    assert opt <= worst_idleness("CGG", 4, "default")
+    assert opt <= 2.3 * L / 4, (opt, L)
 
 
 @pytest.mark.parametrize("n", [2, 8])
-@pytest.mark.parametrize("alg", ["CGG", "MSP"])
+@pytest.mark.parametrize("alg", ["CGG", "CGG_TSP", "MSP"])
 def test_optimised_no_worse_than_default_on_grid(alg, n):
     assert worst_idleness(alg, n, "optimised") <= worst_idleness(alg, n, "default") + 1e-6
 

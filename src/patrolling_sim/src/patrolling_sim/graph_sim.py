@@ -571,7 +571,8 @@ def main(argv=None):
                                cycles=a.cycles, seed=a.seed, speed=a.speed, gwait=a.gwait,
                                comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
                                results_dir=a.results_dir).validate()
-        _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos)
+        _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos,
+                                                     alg=first.alg)
         warning = validation.team_size_warning(first.robots, pgraph.n, paths.map_name(a.map))
         if warning:
             print(warning, file=sys.stderr)

@@ -213,7 +213,9 @@ def start_positions(map_name, n, pgraph, occupancy, initpos="default", table=Non
         raise PatrolInputError(f"team size must be >= 1, got {n}")
     if initpos == OPTIMISED:
         from .startpos import optimised_start_positions
-        return optimised_start_positions(pgraph, occupancy, n, alg, map_name)
+        default, _ = start_positions(map_name, n, pgraph, occupancy, "default", table,
+                                     table_path)
+        return optimised_start_positions(pgraph, occupancy, n, alg, map_name, default)
     key = table_key(map_name, n, initpos)
     entry = (table or {}).get(key)
     where = table_path or "initial poses table"

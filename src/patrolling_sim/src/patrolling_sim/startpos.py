@@ -91,8 +91,11 @@ def _cycle_offset(ref, cyc):
 
 
 def cyclic_start_vertices(pgraph, alg, n, map_name, usable, speed=1.0, goal_wait=0.0,
-                          params=None):
-    """Start vertices evenly spaced by travel time along the strategy's closed walk."""
+                          params=None, baseline=None):
+    """Start vertices evenly spaced by travel time along the strategy's closed walk.
+
+    ``baseline``: another start (e.g. the default one); it is kept instead when the model
+    scores it better, so the result is never worse than it on the route model."""
     cand_v = [v for v in range(pgraph.n) if usable[v]]
     ref_route = probe_route(pgraph, alg, n, map_name, cand_v[0], params)
     ref = ref_route[:-1]
@@ -141,6 +144,12 @@ def cyclic_start_vertices(pgraph, alg, n, map_name, usable, speed=1.0, goal_wait
             best = (key, chosen)
     # then single-robot moves while the worst idleness (then the spacing) improves
     key, chosen = best
+    index = {v: i for i, (v, _) in enumerate(cands)}
+    if baseline is not None and all(v in index for v in baseline) \
+            and len(set(baseline)) == n:
+        base = [index[v] for v in baseline]
+        if score(base) <= key:             # a tie keeps the baseline
+            key, chosen = score(base), base
     improved = True
     while improved:
         improved = False
@@ -152,6 +161,7 @@ def cyclic_start_vertices(pgraph, alg, n, map_name, usable, speed=1.0, goal_wait
                 k2 = score(trial)
                 if k2 < key:
                     key, chosen, improved = k2, trial, True
+    log.debug("cyclic start for %s, %d robots: model worst idleness %.1f s", alg, n, key[0])
     return [cands[c][0] for c in chosen]
 
 
@@ -213,7 +223,7 @@ def kcentre_start_vertices(pgraph, n, usable):
 
 
 def optimised_start_vertices(pgraph, n, alg, map_name, usable=None, speed=1.0,
-                             goal_wait=0.0, params=None):
+                             goal_wait=0.0, params=None, baseline=None):
     """(vertices, method): one start vertex per robot for ``alg`` (module doc), or
     (None, reason) when the graph has fewer usable vertices than robots."""
     usable = np.ones(pgraph.n, bool) if usable is None else np.asarray(usable, bool)
@@ -221,7 +231,7 @@ def optimised_start_vertices(pgraph, n, alg, map_name, usable=None, speed=1.0,
     verts = None
     if kind == "cyclic":
         verts = cyclic_start_vertices(pgraph, alg, n, map_name, usable, speed, goal_wait,
-                                      params)
+                                      params, baseline)
         method = "evenly spaced along the route"
     elif kind == "partition":
         verts = partition_start_vertices(pgraph, n, map_name, usable, params)
@@ -234,18 +244,22 @@ def optimised_start_vertices(pgraph, n, alg, map_name, usable=None, speed=1.0,
     return verts, method
 
 
-def optimised_start_positions(pgraph, occupancy, n, alg, map_name):
+def optimised_start_positions(pgraph, occupancy, n, alg, map_name, default=None):
     """(positions, source) for :func:`patrolling_sim.initial_poses.start_positions`:
     the optimised vertices' positions; when they cannot hold the team (more robots than
     usable vertices, or two chosen vertices closer than the start separation) the default
-    computed spread is used instead and the source says so."""
+    computed spread is used instead and the source says so. ``default``: the default start
+    positions; for cyclic strategies they are kept when the route model rates them at least
+    as well (so optimised is never worse than default on the model)."""
     from .initial_poses import (ROBOT_RADIUS, check_start_positions,
                                 compute_start_positions)
     if not alg:
         raise PatrolInputError("--initpos optimised needs the algorithm (--alg)")
     usable = [occupancy.is_free(x, y) and occupancy.clearance_at(x, y) >= ROBOT_RADIUS
               for x, y in pgraph.pos]
-    verts, method = optimised_start_vertices(pgraph, n, alg, map_name, usable)
+    baseline = None if default is None else [pgraph.nearest_vertex(x, y) for x, y in default]
+    verts, method = optimised_start_vertices(pgraph, n, alg, map_name, usable,
+                                             baseline=baseline)
     if verts is not None:
         pos = [tuple(round(float(c), 3) for c in pgraph.pos[v]) for v in verts]
         problem = check_start_positions(pos, occupancy)

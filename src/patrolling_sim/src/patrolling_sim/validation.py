@@ -108,7 +108,7 @@ def check_ros_navigation(loc, env=None):
                                f"them); use --nav spqrel_nav_lite")
 
 
-def check_start_positions(map_arg, robots, initpos, what="argument --robots"):
+def check_start_positions(map_arg, robots, initpos, what="argument --robots", alg=None):
     """The team's start positions (from params/initial_poses.txt or computed); a one-line
     error when they cannot be placed."""
     from .graph import PatrolGraph
@@ -117,7 +117,7 @@ def check_start_positions(map_arg, robots, initpos, what="argument --robots"):
     table_path = paths.initial_poses_file()
     pg = PatrolGraph(G)
     pos, _ = start_positions(paths.map_name(map_arg), robots, pg, occ, initpos,
-                             load_initial_poses(table_path), table_path)
+                             load_initial_poses(table_path), table_path, alg=alg)
     return pos, pg
 
 

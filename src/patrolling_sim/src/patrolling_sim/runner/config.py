@@ -163,7 +163,8 @@ class ExperimentConfig:
         if not self.initpos:
             self.initpos = "default"
         if check_start_positions:
-            _, pgraph = validation.check_start_positions(self.map, self.robots, self.initpos)
+            _, pgraph = validation.check_start_positions(self.map, self.robots, self.initpos,
+                                                         alg=self.alg)
             warning = validation.team_size_warning(self.robots, pgraph.n, self.map_name)
             if warning:
                 log.warning("%s", warning[len("warning: "):])
