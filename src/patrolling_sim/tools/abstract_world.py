@@ -201,6 +201,16 @@ class WorldNode:
             self.rospy.loginfo("abstract_world: GO at sim %.2f s", self.go_at)
 
     def run(self):
+        """Step until shutdown; the summary is logged however the loop ends."""
+        try:
+            self._step_loop()
+        except self.rospy.ROSException:
+            if not self.rospy.is_shutdown():      # publishing while shutting down is fine
+                raise
+        finally:
+            self.log_summary()
+
+    def _step_loop(self):
         rospy = self.rospy
         # this node owns the clock: it sets its own ROS time directly instead of reading
         # back every /clock message it publishes (rospy subscribed to /clock at init_node)
@@ -254,7 +264,6 @@ class WorldNode:
                 window = (now, self.world.time)
                 last_status = now
                 self.status_pub.publish(json.dumps(self.status(rtf)))
-        self.log_summary()
 
     def _hold_for_reactions(self):
         """Stop the clock while a robot that arrived ``hold_after`` sim s ago has no new goal
