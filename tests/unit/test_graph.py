@@ -10,7 +10,7 @@ from patrolling_sim.graph import (PatrolGraph, format_graph, graph_warnings, gra
                                   undirected_edge_count)
 from patrolling_sim.mapio import load_map
 
-# patrolling_sim_facts.md section 4: V, E (distinct pairs), E* (as the original prints)
+# the shipped maps (maps/README.md): V, E (distinct pairs), E* (as the original prints)
 SHIPPED = {
     "grid": (25, 40, 40), "example": (29, 34, 36), "cumberland": (40, 44, 44),
     "1r5": (12, 11, 11), "broughton": (163, 186, 186), "DIAG_labs": (27, 26, 26),

@@ -1,4 +1,4 @@
-"""The monitor's measurements, as a pure state machine (patrolling_sim_facts.md section 5).
+"""The monitor's measurements, as a pure state machine (docs/monitor.md).
 
 Both the ROS ``monitor`` node and the graph-level simulator feed it the same events, so
 results from the two modes are computed by one piece of code:
@@ -8,7 +8,7 @@ results from the two modes are computed by one piece of code:
     core.start(now)                               # GO: time zero
     r = core.visit(robot, vertex, now)            # a TARGET_REACHED report [id,11,v]
     core.interference(robot, now)                 # an INTERFERENCE report [id,12]
-    s = core.stats(now)                           # every metric of section 5.4
+    s = core.stats(now)                           # every metric (docs/monitor.md, "Metrics")
 
 Definitions (the original's, without its bugs):
 
@@ -55,7 +55,7 @@ class VertexStats:
 
 @dataclass
 class Stats:
-    """Every metric of facts section 5.4 at one instant."""
+    """Every metric of docs/monitor.md ("Metrics") at one instant."""
     elapsed: float
     cycles: int
     n_samples: int
@@ -106,7 +106,7 @@ class MonitorCore:
         self.max_idl = 0.0
         self.interferences = 0
         self.cycles = 0
-        #: robot id -> time since GO of its last visit report (the FAIL rule of 5.7)
+        #: robot id -> time since GO of its last visit report (the FAIL rule, docs/monitor.md "Run statuses")
         self.last_report: Dict[int, float] = {}
 
     # -- handshake ----------------------------------------------------------------------
