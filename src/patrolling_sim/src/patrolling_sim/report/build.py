@@ -52,6 +52,21 @@ def _load_map(name, cache, warnings):
     return cache[name]
 
 
+def _references(name, n, cache, ref_cache):
+    """The theoretical references of map ``name`` for ``n`` robots at 1 m/s
+    (:mod:`patrolling_sim.references`), None if the map cannot be read."""
+    key = (name, int(n))
+    if key not in ref_cache:
+        loaded = _load_map(name, cache, [])
+        if loaded is None:
+            ref_cache[key] = None
+        else:
+            from ..graph import PatrolGraph
+            from ..references import references
+            ref_cache[key] = references(PatrolGraph(loaded[1]), int(n), 1.0, name)
+    return ref_cache[key]
+
+
 def select_runs(runs, include_fail=False):
     """(used, excluded): a report averages only runs that ended normally (TIMEOUT, CYCLES,
     STOPPED; FAIL too with ``include_fail``); ``excluded`` is [(run, why)]."""
@@ -143,16 +158,18 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
 
     # --- figures -------------------------------------------------------------------
     box_figs, heat_figs, hist_figs, time_figs = [], [], [], []
+    map_cache, ref_cache = {}, {}
     for mp, gm in per_run.groupby("map", sort=True):
-        boxes = []
+        boxes, refs = [], []
         for key, g in gm.groupby(settings + ["N", "algorithm"], sort=True):
             row = g.iloc[0]
             lab = f"{row['algorithm']}\nN={row['N']}"
             if settings:
                 lab += "\n" + _settings_label(row, settings)
             boxes.append((lab, row["algorithm"], samples_of(g)))
+            refs.append(_references(mp, row["N"], map_cache, ref_cache))
         fig = plots.boxplot_figure(f"Idleness on map {mp} (all samples of all runs)", boxes,
-                                   colors)
+                                   colors, refs)
         path = plots.save(fig, os.path.join(out_dir, plots.slug("boxplot", mp) + ".png"))
         box_figs.append((path, f"Idleness samples per algorithm and team size, map {mp}"))
 

@@ -51,6 +51,9 @@ class Run:
     samples: pd.DataFrame = field(repr=False)
     status: str = ""
     status_note: str = ""
+    #: the visit log (``<prefix>_visits.csv``: time since GO, robot, vertex), None for
+    #: runs written before it existed
+    visits: list = field(default=None, repr=False)
 
     @property
     def label(self):
@@ -242,7 +245,15 @@ def load_run(prefix):
     info = parse_info(prefix + INFO_SUFFIX)
     samples = read_idleness(prefix + IDLENESS_SUFFIX)
     status, note = run_status_of(prefix, info)
-    return Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note)
+    visits = None
+    if os.path.isfile(prefix + "_visits.csv"):
+        from ..metrics import read_visits
+        try:
+            visits = read_visits(prefix + "_visits.csv")
+        except ValueError as e:
+            log.warning("%s (no extended metrics for this run)", e)
+    return Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note,
+               visits=visits)
 
 
 def load_runs(dirs):

@@ -46,9 +46,11 @@ def algorithm_colors(algorithms):
     return {a: cmap(i % cmap.N) for i, a in enumerate(algs)}
 
 
-def boxplot_figure(title, boxes, colors):
+def boxplot_figure(title, boxes, colors, refs=None):
     """boxes: list of (label, algorithm, samples array). Whiskers 1.5 IQR, outliers as dots,
-    means as white diamonds."""
+    means as white diamonds. refs: per box, the theoretical references of its map and team
+    size (:class:`patrolling_sim.references.References` at 1 m/s, or None), drawn as short
+    lines across the box: dashed the cyclic reference L/(N v), dotted the partition one."""
     n = len(boxes)
     fig = Figure(figsize=(max(6.0, 0.75 * n + 2.0), 5.0))
     ax = fig.add_subplot(1, 1, 1)
@@ -61,6 +63,17 @@ def boxplot_figure(title, boxes, colors):
     for patch, b in zip(bp["boxes"], boxes):
         patch.set_facecolor(colors[b[1]])
         patch.set_alpha(0.75)
+    labelled = set()
+    for i, r in enumerate(refs or []):
+        if r is None:
+            continue
+        for value, style, name in ((r.cyclic_idleness, "--", "cyclic reference L/(N v)"),
+                                   (r.partition_idleness, ":", "partition reference")):
+            ax.hlines(value, i + 0.6, i + 1.4, colors="black", linestyles=style, linewidth=1.2,
+                      label=None if name in labelled else name + " (1 m/s)")
+            labelled.add(name)
+    if labelled:
+        ax.legend(loc="upper right", fontsize="small")
     ax.set_ylabel(IDL_LABEL)
     ax.set_xlabel("Algorithm and team size N (box: quartiles, line: median, diamond: mean)")
     ax.set_title(title)

@@ -4,6 +4,8 @@ Per run:
 
 - ``avg_idleness``  mean of the run's idleness.csv samples (the monitor's global average);
 - ``max_idleness``  max of those samples;
+- ``time_avg_idleness``, ``worst_idleness`` from the run's visit log (``<prefix>_visits.csv``,
+  docs/metrics.md; NaN for runs without one);
 - ``complete_cycles``, ``interference_rate`` from info.csv;
 - ``info_idl_avg`` info.csv's value, and ``idl_avg_agrees``: whether it matches the samples'
   mean within the 0.1 s print resolution (0.05 rounding of the file plus 0.05 rounding of
@@ -20,14 +22,45 @@ import pandas as pd
 KEY = ("map", "N", "algorithm")
 #: settings that split groups when they differ between loaded runs
 SETTINGS = ("nav_module", "initial_positions", "goal_wait", "comm_delay")
-METRICS = ("avg_idleness", "max_idleness", "complete_cycles", "interference_rate")
+METRICS = ("avg_idleness", "max_idleness", "time_avg_idleness", "worst_idleness",
+           "complete_cycles", "interference_rate")
 METRIC_LABELS = {
     "avg_idleness": "Avg idleness (s)",
     "max_idleness": "Max idleness (s)",
+    "time_avg_idleness": "Time-avg graph idleness (s)",
+    "worst_idleness": "Worst idleness (s)",
     "complete_cycles": "Complete cycles",
     "interference_rate": "Interference rate (1/min)",
 }
 AGREE_TOL = 0.1
+
+
+_VERTEX_COUNTS = {}
+
+
+def _vertex_count(map_name):
+    """Vertices of a shipped map's graph (None if it cannot be read: user maps filed under a
+    hashed name)."""
+    if map_name not in _VERTEX_COUNTS:
+        from .. import paths
+        from ..graph import load_graph
+        try:
+            _VERTEX_COUNTS[map_name] = load_graph(paths.map_files(map_name)[1],
+                                                  warn=False).number_of_nodes()
+        except Exception:                      # noqa: BLE001 - any unreadable map: no metric
+            _VERTEX_COUNTS[map_name] = None
+    return _VERTEX_COUNTS[map_name]
+
+
+def extended_metrics(run):
+    """(time-averaged graph idleness, worst idleness) of a run from its visit log
+    (docs/metrics.md), NaN without a log or a readable graph."""
+    n = _vertex_count(run.info["map"]) if run.visits is not None else None
+    if not n or not run.info["sim_duration"]:
+        return np.nan, np.nan
+    from ..metrics import compute_metrics
+    m = compute_metrics(run.visits, n, float(run.info["sim_duration"]))
+    return m.time_avg_idleness, m.worst_idleness
 
 
 def run_table(runs):
@@ -38,6 +71,7 @@ def run_table(runs):
         idl = r.samples["Idleness"].to_numpy(dtype=float)
         i = r.info
         avg = float(idl.mean()) if idl.size else np.nan
+        t_avg, worst = extended_metrics(r)
         rows.append({
             "run_id": r.run_id,
             "prefix": r.prefix,
@@ -54,6 +88,8 @@ def run_table(runs):
             "samples": int(idl.size),
             "avg_idleness": avg,
             "max_idleness": float(idl.max()) if idl.size else np.nan,
+            "time_avg_idleness": t_avg,
+            "worst_idleness": worst,
             "complete_cycles": i["complete_cycles"],
             "interference_rate": i["interference_rate"],
             "interferences": i["interferences"],
