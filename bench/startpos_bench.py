@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Start-position benchmark: worst idleness with ``--initpos optimised`` against the default
-start, in graph mode (straight travel along graph edges at 1 m/s, goal wait 0).
+start, in graph mode (the issue's world: straight-line travel at 1 m/s, goal wait 0, no
+interference).
 
 For each map, team size and algorithm: one run of ``--duration`` simulated seconds with each
 start; prints a Markdown table (and writes it to ``--out``). For CGG it also prints L/(N v),
@@ -34,7 +35,7 @@ def worst(map_name, n, alg, initpos, duration, pg, seeds):
     out = []
     for seed in seeds:
         cfg = GraphSimConfig(map=map_name, robots=n, alg=alg, duration=duration, seed=seed,
-                             initpos=initpos)
+                             initpos=initpos, travel="euclidean", interference=False)
         out.append(GraphSimulator(cfg, pgraph=pg).run(write=False).global_max)
     return sum(out) / len(out)
 
@@ -43,7 +44,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--maps", nargs="*", default=None)
     ap.add_argument("--robots", nargs="*", type=int, default=[2, 4, 8])
-    ap.add_argument("--algs", nargs="*", default=["CGG", "MSP"])
+    ap.add_argument("--algs", nargs="*", default=["CGG", "CGG_TSP", "MSP"])
     ap.add_argument("--duration", type=float, default=3000.0)
     ap.add_argument("--seeds", nargs="*", type=int, default=[1])
     ap.add_argument("--out")
@@ -60,14 +61,14 @@ def main():
                 pg = PatrolGraph.load(paths.map_files(m)[1])
                 o = worst(m, n, alg, "optimised", a.duration, pg, a.seeds)
                 ideal = ""
-                if alg == "CGG":
+                if alg in ("CGG", "CGG_TSP"):
                     L = route_cost(pg, probe_route(pg, alg, n, m, 0)) * pg.resolution
                     ideal = f"{L / n:.1f}"
                 row = f"| {m} | {n} | {alg} | {d:.1f} | {o:.1f} | {ideal} |"
                 print(row, flush=True)
                 rows.append(row)
     head = (f"Start positions, graph mode, {a.duration:g} s, mean over seeds "
-            f"{' '.join(map(str, a.seeds))}, speed 1 m/s, goal wait 0 "
+            f"{' '.join(map(str, a.seeds))}, straight lines at 1 m/s, goal wait 0, no interference "
             f"({platform.node()}, {datetime.date.today()}; bench/startpos_bench.py)\n\n")
     if a.out:
         with open(a.out, "w", encoding="utf-8") as f:

@@ -1,11 +1,26 @@
 #!/usr/bin/python3
 """Campaigns of experiments on Dask, resumable (see --help and docs/campaigns.md)."""
 import os
+import signal
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src",
                                 "patrolling_sim", "src"))
 
+
+def _early_signal(signum, frame):
+    # a signal while the modules load ends the program at once, in one line (nothing written
+    # yet); run_campaign installs its own handlers, which stop between two stored runs
+    sys.stderr.write(f"campaign.py: interrupted by {signal.Signals(signum).name} before the "
+                     "campaign started\n")
+    sys.stderr.flush()
+    os._exit(143 if signum == signal.SIGTERM else 130)
+
+
 if __name__ == "__main__":      # Dask's worker processes re-import this file: no side effects
+    signal.signal(signal.SIGINT, _early_signal)
+    signal.signal(signal.SIGTERM, _early_signal)
     from patrolling_sim.campaign import main
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     sys.exit(main())
