@@ -63,8 +63,8 @@ def strategy_kind(alg):
         raise PatrolInputError(f"argument --alg: unknown algorithm '{alg}'")
     if issubclass(cls, MultilevelSubgraphPatrolling):
         return "partition"
-    if callable(getattr(cls, "build_route", None)):     # follows one closed route (CGG, ...)
-        return "cyclic"
+    if callable(getattr(cls, "build_route", None)) and getattr(cls, "shared_route", True):
+        return "cyclic"                          # follows one closed route (CGG, CGG_TSP)
     return "other"
 
 

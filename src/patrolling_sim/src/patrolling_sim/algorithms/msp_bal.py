@@ -14,6 +14,8 @@ class BalancedSubgraphPatrolling(RouteFollower):
     their start vertices, each robot starting its route at its own vertex (or the region's
     nearest vertex). The shipped route files are not used."""
     name = "MSP_BAL"
+    #: each robot follows its own region's route (not one route shared by the team)
+    shared_route = False
 
     def build_route(self, start_vertex):
         route, self.route_source = msp_balanced_route(
