@@ -81,7 +81,7 @@ class TestNodeCli(unittest.TestCase):
     def test_abort(self):
         info, _, _ = self._monitor_run(
             "abort", [], lambda: rospy.set_param("/simulation_abort", True))
-        self.assertEqual(info[13], "ABORT")
+        self.assertEqual(info[13], "ABORTED")      # the original writes ABORT (docs/monitor.md)
         rospy.set_param("/simulation_abort", False)
 
     def test_timeout(self):

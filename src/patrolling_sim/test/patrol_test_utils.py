@@ -14,10 +14,12 @@ END = [-1, 10, 999]
 IDLENESS_HEADER = "Time;Robot;Node;Idleness;Interferences"
 TIMERESULTS_HEADER = "Time;Idleness min;Idleness avg;Idleness stddev;Idleness max;Interferences"
 IDLENESS_ROW = re.compile(r"^-?\d+\.\d;\d+;\d+;\d+\.\d;\d+$")
+# fields 15-18 (idleness min/avg/SD/max) are empty when the run has no idleness sample
+# (docs/monitor.md): a run with a single visit per vertex measured no idleness
 INFO_FORMATS = [r"[^;]+", r"\d+", r"[^;]*", r"\d+\.\d", r"\d+\.\d\d", r"[^;]*", r"[^;]+",
                 r"[^;]*", r"[^;]+", r"\d{8}_\d{6}", r"\d+\.\d", r"\d+\.\d", r"\d+",
-                r"[A-Z]+", r"\d+\.\d", r"\d+\.\d", r"\d+\.\d", r"\d+\.\d", r"\d+\.\d\d", r"\d+",
-                r"\d+\.\d", r"\d+"]
+                r"[A-Z]+", r"(\d+\.\d)?", r"(\d+\.\d)?", r"(\d+\.\d)?", r"(\d+\.\d)?",
+                r"\d+\.\d\d", r"\d+", r"\d+\.\d", r"\d+"]
 
 
 class ResultsRecorder:
