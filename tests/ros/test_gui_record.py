@@ -93,7 +93,8 @@ def test_gui_starts_and_stops_an_experiment(tmp_path, xvfb, monkeypatch):
             return float(words[2]) if len(words) > 2 and words[2] != "-" and \
                 "waiting" not in app.progress.get() else -1.0
 
-        pump(lambda: sim_time() >= 30.0, 180, "progress after GO")
+        # the progress shows the simulator's clock, a few seconds ahead of the time since GO
+        pump(lambda: sim_time() >= 36.0, 180, "progress after GO")
         assert "cycles" in app.progress.get() and "avg idleness" in app.progress.get()
         shot = tmp_path / "gui.png"
         subprocess.run(["import", "-display", xvfb, "-window", "root", str(shot)],
