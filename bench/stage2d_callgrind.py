@@ -5,8 +5,9 @@ an instruction count does not).
 
 The node runs headless under callgrind with speedup 0, one scan thread, the command wait and
 the cmd_vel watchdog off, every scan computed (~scan_always) and every robot turning on the
-spot (one latched cmd_vel). Once the node has logged that it is set up (map loaded, robots
-created), the counters are zeroed (callgrind_control --zero), so loading the map is left out;
+spot (one latched cmd_vel, advertised before the node starts). Once the node has logged that it is set up (map loaded, robots
+created), 5 s later the counters are zeroed (callgrind_control --zero), so loading the map and the
+first connections are left out;
 after --seconds more wall seconds the node is stopped with SIGINT and callgrind writes its
 counts. Steps are counted by the calls of b2World::Step (in the Box2D library, so never
 inlined) divided by the physics sub-steps per step (10 with the default 0.1 s step). The
@@ -66,6 +67,18 @@ def parse_callgrind(path, step_fn):
     return total, calls
 
 
+def wait_for_publishers(env, n, timeout=60.0):
+    """Until the spinner advertises every robot's cmd_vel."""
+    code = ("import rosgraph, sys; m = rosgraph.Master('/cg'); "
+            "pubs = [t for t, _ in m.getSystemState()[0]]; "
+            f"sys.exit(0 if all(f'/robot_{{i}}/cmd_vel' in pubs for i in range({n})) else 1)")
+    deadline = time.time() + timeout
+    while subprocess.run(["/usr/bin/python3", "-c", code], env=env).returncode != 0:
+        if time.time() > deadline:
+            sys.exit("stage2d_callgrind: error: the cmd_vel publisher did not start")
+        time.sleep(0.5)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--binary", default=BINARY)
@@ -87,6 +100,12 @@ def main():
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                       start_new_session=True))
         time.sleep(2)
+        # the latched command is there before the node subscribes: every robot turns from
+        # its first steps, so every counted step recomputes every scan
+        procs.append(subprocess.Popen(["/usr/bin/python3", "-c", SPINNER, str(a.robots)], env=env,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                      start_new_session=True))
+        wait_for_publishers(env, a.robots)
         node = subprocess.Popen(
             ["stdbuf", "-oL", "valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
              a.binary, "__name:=stage2d", f"_map:={yaml_path}",
@@ -100,10 +119,7 @@ def main():
         else:
             sys.exit("stage2d_callgrind: error: the node exited during set-up")
         threading.Thread(target=lambda: [None for _ in node.stdout], daemon=True).start()
-        procs.append(subprocess.Popen(["/usr/bin/python3", "-c", SPINNER, str(a.robots)], env=env,
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                      start_new_session=True))
-        time.sleep(2.0)
+        time.sleep(5.0)  # connections up, robots turning
         subprocess.run(["callgrind_control", "--zero", str(node.pid)], check=True,
                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(a.seconds)
