@@ -1,4 +1,4 @@
-"""The monitor's measurements, as a pure state machine (patrolling_sim_facts.md section 5).
+"""The monitor's measurements, as a pure state machine (definitions: docs/monitor.md).
 
 Both the ROS ``monitor`` node and the graph-level simulator feed it the same events, so
 results from the two modes are computed by one piece of code:
@@ -55,7 +55,7 @@ class VertexStats:
 
 @dataclass
 class Stats:
-    """Every metric of facts section 5.4 at one instant."""
+    """Every metric of docs/monitor.md at one instant."""
     elapsed: float
     cycles: int
     n_samples: int

@@ -1,4 +1,4 @@
-"""Result files, in the original monitor's formats (patrolling_sim_facts.md section 5.6).
+"""Result files, in the original monitor's formats (docs/monitor.md, "Result files").
 
 One experiment writes four files sharing a *prefix*
 ``<results_dir>/<map>_<N>/<ALG>/<host>/<YYYYMMDD_HHMMSS>``:

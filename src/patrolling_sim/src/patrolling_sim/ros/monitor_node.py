@@ -1,4 +1,4 @@
-"""The monitor node (patrolling_sim_facts.md section 5): handshake, visit processing,
+"""The monitor node (docs/monitor.md): handshake, visit processing,
 metrics and result files, termination.
 
 All measurements are made by :class:`patrolling_sim.monitor_core.MonitorCore` and written
