@@ -284,3 +284,39 @@ def test_silent_robot_fails_naming_it(tmp_path):
     assert "robot(s) 1 sent no visit for 15 sim s" in run.out, run.out[-2000:]
     info = parse_info_line(open(prefix + "_info.csv").read())
     assert info["termination"] == "FAIL" and 15.0 <= info["sim_duration"] < 40.0, info
+
+
+def test_interrupted_batch_prints_its_table(tmp_path):
+    """SIGINT to a batch while its first run starts: the run is stopped, the table lists it
+    as interrupted and the others as never started, the batch's temporary files go."""
+    batch = tmp_path / "b.yaml"
+    batch.write_text("base: {map: grid, robots: 2, loc: fake_localization, timeout: 600}\n"
+                     "grid: {alg: [CR, CGG, RAND]}\n")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(ros_env(), TMPDIR=str(tmp))
+    p = subprocess.Popen(["/usr/bin/python3", START, "--batch", str(batch), "--results-dir",
+                          str(tmp_path / "res"), "--speedup", "5"], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    tree = ProcessTree(p.pid)
+    t0 = time.monotonic()
+    while not any(os.path.exists(f"{r}/run_0.out") for r, _, _ in os.walk(tmp)):
+        assert p.poll() is None and time.monotonic() - t0 < 120, "the batch did not start"
+        time.sleep(0.1)
+    tree.refresh()
+    p.send_signal(signal.SIGINT)
+    out, _ = p.communicate(timeout=120)
+    out = out.decode(errors="replace")
+    t0 = time.monotonic()
+    while tree.alive() and time.monotonic() - t0 < 30:
+        time.sleep(0.3)
+    left = tree.alive()
+    for pid in left:
+        os.kill(pid, signal.SIGKILL)
+    assert not left, out
+    assert p.returncode == 130, out
+    rows = [ln.split() for ln in out.splitlines() if ln.strip()[:1].isdigit()]
+    assert [r[0] for r in rows] == ["1", "2", "3"], out
+    assert rows[0][5] == "130" and rows[1][-2:] == rows[2][-2:] == ["never", "started"], out
+    assert "Traceback" not in out, out
+    assert os.listdir(tmp) == [], "the batch's temporary files were left"

@@ -118,13 +118,14 @@ def run_one(cfg, out=safe_print):
     # background by a non-interactive shell, as nohup and `cmd &` in scripts do).
     def on_signal(signum, frame):
         exp.request_stop(signal.Signals(signum).name)
-    old = signal.signal(signal.SIGTERM, on_signal)
-    old_int = signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
     try:
         outcome = exp.run()
     finally:
-        signal.signal(signal.SIGTERM, old)
-        signal.signal(signal.SIGINT, old_int)
+        # the run is recorded: a late signal (video, summary) only stops this program
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     if cfg.record and getattr(exp, "snapshot_dir", None):
         try:
             from .video import assemble_video

@@ -163,9 +163,10 @@ class ExperimentConfig:
         if not self.initpos:
             self.initpos = "default"
         if check_start_positions:
-            _, pgraph = validation.check_start_positions(self.map, self.robots, self.initpos,
-                                                         alg=self.alg)
-            warning = validation.team_size_warning(self.robots, pgraph.n, self.map_name)
+            self.start_positions()          # one-line error when they cannot be placed
+            from ..graph import load_graph
+            n_vertices = load_graph(paths.map_files(self.map)[1], warn=False).number_of_nodes()
+            warning = validation.team_size_warning(self.robots, n_vertices, self.map_name)
             if warning:
                 log.warning("%s", warning[len("warning: "):])
         validation.check_memory(self.robots, self.processes, self.force)
