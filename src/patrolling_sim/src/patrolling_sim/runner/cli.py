@@ -159,6 +159,13 @@ def print_summary(outcome, out=safe_print):
         out(f"  {f}")
 
 
+def exit_status(returncode):
+    """A child's exit status as a shell reports it: a death by signal N (Popen's -N, e.g. a
+    SIGINT that arrived before the child's interpreter had installed its handlers) is
+    128 + N, so 130 / 143 mean interrupted whether the child handled the signal or not."""
+    return 128 - returncode if returncode is not None and returncode < 0 else returncode
+
+
 def run_batch(configs, parallel, argv0, out=print):
     """Run validated configurations, ``parallel`` at a time, each in its own process
     (each with its own ROS master). Returns the list of (config, exit code, result line)."""
@@ -190,12 +197,14 @@ def run_batch(configs, parallel, argv0, out=print):
                 res = next((l for l in reversed(lines) if l.startswith("results:")), "")
                 why = next((l for l in reversed(lines) if l.startswith("result:")
                             or ": error:" in l), "")
-                results[i] = (configs[i], p.returncode, why, res, time.monotonic() - t0)
+                results[i] = (configs[i], exit_status(p.returncode), why, res,
+                              time.monotonic() - t0)
                 del running[i]
                 done += 1
                 c = configs[i]
                 out(f"[{done}/{len(configs)}] run {i + 1}: {c.map_name} N={c.robots} {c.alg} "
-                    f"seed={c.seed} -> exit {p.returncode} ({time.monotonic() - t0:.0f} s) {res}")
+                    f"seed={c.seed} -> exit {exit_status(p.returncode)} "
+                    f"({time.monotonic() - t0:.0f} s) {res}")
     except KeyboardInterrupt:
         out("batch interrupted: stopping running experiments")
         for i, (p, logf, t0) in running.items():
@@ -213,7 +222,8 @@ def run_batch(configs, parallel, argv0, out=print):
             lines = logf.read().splitlines()
             logf.close()
             res = next((l for l in reversed(lines) if l.startswith("results:")), "")
-            results[i] = (configs[i], p.returncode, "interrupted", res, time.monotonic() - t0)
+            results[i] = (configs[i], exit_status(p.returncode), "interrupted", res,
+                          time.monotonic() - t0)
         raise BatchInterrupted(results)
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
