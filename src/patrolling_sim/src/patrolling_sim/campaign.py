@@ -360,19 +360,16 @@ def needs_run(record: Optional[dict], retry_failed: bool) -> bool:
 
 
 def _summary_from_info(text):
-    from .results import INFO_FIELDS
-    vals = text.strip().split(";")
-    if len(vals) != len(INFO_FIELDS):
+    """The original's metrics of an info.csv line (empty idleness fields: None), {} if the
+    line is malformed."""
+    from .results import parse_info_line
+    try:
+        row = parse_info_line(text)
+    except ValueError:
         return {}
-    row = dict(zip(INFO_FIELDS, vals))
-    out = {}
-    for k in ("idl_min", "idl_avg", "idl_stddev", "idl_max", "interferences", "total_visits",
-              "complete_cycles", "sim_duration", "interference_rate"):
-        try:
-            out[k] = float(row[k]) if row[k] != "" else None
-        except ValueError:
-            out[k] = None
-    return out
+    return {k: (None if row[k] is None else float(row[k]))
+            for k in ("idl_min", "idl_avg", "idl_stddev", "idl_max", "interferences",
+                      "total_visits", "complete_cycles", "sim_duration", "interference_rate")}
 
 
 def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign) -> dict:
@@ -401,7 +398,7 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign) -> d
         metrics.update(_summary_from_info(info))
         vpath = os.path.join(out, dest_prefix + "_visits.csv")
         if os.path.isfile(vpath) and metrics.get("sim_duration"):
-            n = _vertex_count(spec.config["map"])
+            n = paths.vertex_count(spec.config["map"])
             m = compute_metrics(read_visits(vpath), n, metrics["sim_duration"])
             md = metrics_to_yaml_dict(m)
             _write_atomic(os.path.join(out, dest_prefix + "_metrics.yaml"),
@@ -423,18 +420,6 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign) -> d
     _write_atomic(os.path.join(out, STATE_DIR, spec.key + ".yaml"),
                   yaml.dump(record, Dumper=_Dumper, sort_keys=False))
     return record
-
-
-_VERTEX_COUNTS: Dict[str, int] = {}
-
-
-def _vertex_count(map_arg: str) -> int:
-    """Vertex count of a map's patrol graph (read once per map per client)."""
-    if map_arg not in _VERTEX_COUNTS:
-        from .graph import load_graph
-        _VERTEX_COUNTS[map_arg] = load_graph(paths.map_files(map_arg)[1], warn=False)\
-            .number_of_nodes()
-    return _VERTEX_COUNTS[map_arg]
 
 
 def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:

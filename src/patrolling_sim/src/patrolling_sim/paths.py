@@ -68,6 +68,21 @@ def msp_route_file(map_name_, n_robots, robot_id):
     return os.path.join(data_root(), "MSP", map_name_, f"{map_name_}_{n_robots}_{robot_id}")
 
 
+_VERTEX_COUNTS = {}
+
+
+def vertex_count(name):
+    """Number of vertices of a map's patrol graph (read once per map and process).
+
+    Raises:
+        PatrolInputError: unknown map or unreadable graph file.
+    """
+    if name not in _VERTEX_COUNTS:
+        from .graph import load_graph
+        _VERTEX_COUNTS[name] = load_graph(map_files(name)[1], warn=False).number_of_nodes()
+    return _VERTEX_COUNTS[name]
+
+
 def load_map_bundle(name):
     """Load a map's occupancy grid and patrol graph; vertices on non-free cells warn.
 

@@ -35,21 +35,14 @@ METRIC_LABELS = {
 AGREE_TOL = 0.1
 
 
-_VERTEX_COUNTS = {}
-
-
 def _vertex_count(map_name):
     """Vertices of a shipped map's graph (None if it cannot be read: user maps filed under a
     hashed name)."""
-    if map_name not in _VERTEX_COUNTS:
-        from .. import paths
-        from ..graph import load_graph
-        try:
-            _VERTEX_COUNTS[map_name] = load_graph(paths.map_files(map_name)[1],
-                                                  warn=False).number_of_nodes()
-        except Exception:                      # noqa: BLE001 - any unreadable map: no metric
-            _VERTEX_COUNTS[map_name] = None
-    return _VERTEX_COUNTS[map_name]
+    from .. import paths
+    try:
+        return paths.vertex_count(map_name)
+    except Exception:                          # noqa: BLE001 - any unreadable map: no metric
+        return None
 
 
 def extended_metrics(run):
