@@ -38,21 +38,11 @@ from typing import Any, Callable, Dict, List, Optional
 
 from ..graph import PatrolGraph
 
-#: message type ids on /results (docs/protocol.md)
-MSG_INIT = 10
-MSG_TARGET_REACHED = 11
-MSG_INTERFERENCE = 12
-MSG_GBS_REACHED = 31
-MSG_SEBS_REACHED = 32
-MSG_DTA_IDLENESS = 40
-MSG_SSI_TASK_REQUEST = 41
-MSG_SSI_BID = 42
-
-#: largest value of an int16 payload entry (every /results entry is an int16)
-INT16_MAX = 32767
-#: what the original's DTA agents send instead of an idleness entry (10 x seconds) or a bid
-#: that does not fit an int16
-INT16_CAP = 32000
+# message types and int16 caps on /results (docs/protocol.md): named once in
+# patrolling_sim.protocol, re-exported here for the algorithms
+from ..protocol import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_GBS_REACHED,  # noqa: F401
+                        MSG_INIT, MSG_INTERFERENCE, MSG_SEBS_REACHED, MSG_SSI_BID,
+                        MSG_SSI_TASK_REQUEST, MSG_TARGET_REACHED)
 
 
 class Driver:

@@ -5,6 +5,8 @@ import os
 import time
 import xmlrpc.client
 
+from ..protocol import END, GO, MONITOR_ID, MSG_INIT, MSG_TARGET_REACHED
+
 
 def master_up(uri, timeout, stop=lambda: False):
     """True once the ROS master at ``uri`` answers (within ``timeout`` wall s, or until
@@ -95,16 +97,16 @@ class RosWatcher:
 
     def _results(self, msg):
         d = list(msg.data)
-        if len(d) >= 3 and d[1] == 10:
-            if d[0] == -1 and d[2] == 100:
+        if len(d) >= 3 and d[1] == MSG_INIT:
+            if d[0] == MONITOR_ID and d[2] == GO:
                 if not self.go:
                     self.sim_at_go = self.sim_time
                 self.go = True
-            elif d[0] == -1 and d[2] == 999:
+            elif d[0] == MONITOR_ID and d[2] == END:
                 self.end = True
             elif d[0] >= 0:
                 self.ready.add(d[0])
-        elif len(d) >= 3 and d[1] == 11 and self.go:
+        elif len(d) >= 3 and d[1] == MSG_TARGET_REACHED and self.go:
             # counted as the monitor counts them: a vertex's first report (the start
             # vertex, usually) is not a visit (its counter starts at -1)
             self._reports += 1
