@@ -48,7 +48,6 @@ class LauncherApp:
         import tkinter as tk
         from tkinter import ttk
         from ..algorithms import REGISTRY
-        self.tk, self.ttk = tk, ttk
         self.root = root
         self.script = script
         self.proc = None
