@@ -1,30 +1,26 @@
 """The original CGG's route where its Hamiltonian step fails: main cycle or longest path,
 detours over the edges it misses, ``num_arcs`` found by bisection (docs/fidelity.md, CGG).
 
-A pure re-statement of what the original's construction *does* (its randomised searches
-seeded with the C library's ``srand``/``rand``, emulated by :class:`patrolling_sim.routes.CRand`,
-so every robot gets the same route as the original's). The steps:
+What the original's construction *does*, with its ``srand``/``rand`` draws (emulated by
+:class:`patrolling_sim.routes.CRand`), so every robot gets the original's route:
 
-1. :func:`longest_cycle`: from every vertex of degree > 1 in id order, a randomised depth-first
-   walk over unused edges that tries to come back to its origin as late as possible (a
-   neighbour with >= 4 unused edges is preferred to the random draw; a dead end is undone);
-   a found cycle is retried with seeds 2000, 3000, 4000; the costliest cycle wins.
-2. :func:`longest_path`: the same walk between every pair of degree-1 vertices (seed 1000);
-   the costliest path wins.
+1. :func:`longest_cycle`: from each vertex of degree > 1 in id order, a randomised walk over
+   unused edges that returns to its origin as late as it can (a neighbour with >= 4 unused
+   edges beats the random draw; a dead end is undone); a found cycle is retried with seeds
+   2000, 3000, 4000; the costliest cycle wins.
+2. :func:`longest_path`: the same walk between every pair of degree-1 vertices (seed 1000).
 3. The main route is the cycle if it has at least V // 2 entries, else the path.
-4. :func:`outbound_walk` follows the main route and, at each vertex with an edge not yet
-   walked that is not on the main route, inserts a detour of at most ``num_arcs`` new
-   vertices that comes back where it left; it succeeds if every edge was walked.
-   :func:`cyclic_route` finds the smallest successful ``num_arcs`` as the original does
-   (1; else V, 1.5 V, 2 V ... at most 100 tries; then bisection) and closes the walk: a
-   cycle is used as it is, a path is walked back (2L - 1 entries).
+4. :func:`outbound_walk` follows the main route and inserts, where an edge off it is unused,
+   a detour of at most ``num_arcs`` new vertices back to where it left; it succeeds if every
+   edge was used. :func:`cyclic_route` takes the smallest such ``num_arcs`` as the original
+   (1; else L, 1.5 L, 2 L ... for a main route of L entries, at most 100 tries; then
+   bisection); a cycle is used as it is, a path is walked back (2W - 1 entries).
 
-Where the original reads memory it never wrote (a detour's return list when empty, a
-neighbour slot past a vertex's list), this module reads what a fresh C array holds: slots
-past a vertex's neighbours (up to the original's 8) read 0, other unwritten slots read -1.
-Effort: the original has no bound on its searches; here each search stops after
-``MAX_STEPS`` steps and the construction then raises :class:`RouteConstructionError` (the
-caller falls back to CGG_TSP's tour); no shipped map comes near it.
+Memory the original reads but never wrote reads as a fresh array: a neighbour slot past a
+vertex's list (up to its 8) as 0, any other unwritten slot as -1 (or, where that cannot be
+modelled, :class:`RouteConstructionError`). The original bounds no search; here a search
+stops after ``MAX_STEPS`` steps with that error too (the caller, CGG, then falls back to
+CGG_TSP's tour). See docs/fidelity.md, CGG.
 """
 from typing import List, Optional, Sequence, Tuple
 
@@ -39,8 +35,7 @@ SLOTS = 8
 
 
 class RouteConstructionError(RuntimeError):
-    """The construction cannot produce a route (no cycle and no degree-1 pair, or a search
-    exceeded its step bound)."""
+    """The construction cannot produce a route (see the module docstring)."""
 
 
 class _Web:
@@ -83,13 +78,8 @@ class _Web:
         return self.vis[v].count(False)
 
     def walk_cost(self, walk):
-        total = 0
-        for a, b in zip(walk, walk[1:]):
-            for k, x in enumerate(self.nb[a]):
-                if x == b:
-                    total += self.cost[a][k]
-                    break
-        return total
+        """Sum of the first listed arc's cost along ``walk``."""
+        return sum(self.cost[a][self.nb[a].index(b)] for a, b in zip(walk, walk[1:]))
 
 
 def _c_remove(items, x):
