@@ -30,7 +30,7 @@ GRAPH_TOLERANCE = 0.05
 #: against the original's mean of 132.9 s; DTAP 80-151 s in graph mode (seeds 0-29, mean
 #: 103.9 s) and 81-138 s in ROS mode (seeds 0-6, mean 102.6 s, 2026-11-25) against the
 #: original's 98 s. One run would fail the 25 % bound by chance, so both are averaged (DTAP
-#: over 4 runs: a standard error of about 9 s); the other algorithms' figures vary by a few
+#: over 4 runs: a standard error of about 10 s); the other algorithms' figures vary by a few
 #: percent.
 RUNS = {"CR": 2, "DTAP": 4}
 PARALLEL = 2
