@@ -12,7 +12,8 @@ process tree from /proc once per second:
 - CPU: mean total CPU of the tree over the run after GO, in % of one core;
 - memory: peak total PSS (proportional set size) of the tree, MB, and the peak PSS of the
   navigation processes (robot_nav, amcl, fake_localization, move_base or nav_host) per robot;
-- CPU-seconds per simulated second (the tree's CPU time after GO over the sim time it
+- CPU-seconds per simulated second, whole tree and navigation processes only (CPU time
+  after GO over the sim time it
   advanced): unlike the pace, it does not depend on what else loads the machine;
 - patrol quality, from the run's info.csv: visits per robot per simulated minute, average
   idleness, interferences, and the simulator's robot-robot contacts. A pace the navigation
@@ -86,6 +87,8 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
     samples = []            # (wall, cumulative cpu ticks of the tree, pss kb, nav pss kb)
     seen = {}               # pid -> last cpu ticks (per-process deltas: exits don't subtract)
     cum = 0
+    cum_nav = 0
+    nav_pids = {}            # pid -> is a navigation process
     state = {"go_wall": None, "go_sim": None, "last": None, "lines": []}
 
     def reader():
@@ -111,10 +114,12 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
             if t is None:                   # exited since the listing
                 continue
             cum += max(0, t - seen.get(x, 0))
+            if nav_pids.setdefault(x, is_nav(x)):
+                cum_nav += max(0, t - seen.get(x, 0))
             seen[x] = t
         pss = {x: pss_kb(x) for x in pids}
         samples.append((time.monotonic() - t0, cum, sum(pss.values()),
-                        sum(v for x, v in pss.items() if is_nav(x))))
+                        sum(v for x, v in pss.items() if nav_pids.get(x)), cum_nav))
         time.sleep(1.0)
     th.join(timeout=5)
     res = {"robots": robots, "loc": loc, "exit": p.returncode, "go": state.get("go_reported"),
@@ -122,7 +127,9 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
     if state["go_wall"] is not None:
         after = [s for s in samples if s[0] >= state["go_wall"]]
         if len(after) >= 2:
-            res["cpu"] = 100.0 * (after[-1][1] - after[0][1]) / CLK / (after[-1][0] - after[0][0])
+            span = after[-1][0] - after[0][0]
+            res["cpu"] = 100.0 * (after[-1][1] - after[0][1]) / CLK / span
+            res["nav_cpu"] = 100.0 * (after[-1][4] - after[0][4]) / CLK / span
         # RTF from the simulator's own stamped log lines after GO (+ a few s of settling)
         go_abs = wall_start + state["go_wall"] + 3.0
         pts = [x for x in sim_log(results_dir, robots, alg, map_name) if x[0] >= go_abs]
@@ -130,6 +137,7 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
             res["rtf"] = (pts[-1][1] - pts[0][1]) / (pts[-1][0] - pts[0][0])
             if "cpu" in res:       # CPU-seconds per simulated second
                 res["cpu_per_sim_s"] = res["cpu"] / 100.0 / res["rtf"]
+                res["nav_cpu_per_sim_s"] = res["nav_cpu"] / 100.0 / res["rtf"]
             res["contacts"] = pts[-1][3]
             res["stale"] = pts[-1][4]
     res["pss_mb"] = max((s[2] for s in samples), default=0) / 1024.0
@@ -172,7 +180,8 @@ def main():
                 print(f"{loc:18s} N={n:3d} exit={r['exit']} GO={r.get('go')} s "
                       f"RTF={r.get('rtf', nan):.2f} CPU={r.get('cpu', nan):.0f}% "
                       f"PSS={r['pss_mb']:.0f} MB nav PSS/robot={r['nav_pss_mb']:.0f} MB "
-                      f"CPU-s/sim-s={r.get('cpu_per_sim_s', nan):.2f} visits/robot/min={r.get('vpm', nan):.1f} "
+                      f"CPU-s/sim-s={r.get('cpu_per_sim_s', nan):.3f} "
+                      f"(nav {r.get('nav_cpu_per_sim_s', nan):.3f}) visits/robot/min={r.get('vpm', nan):.1f} "
                       f"avg idl={r.get('idl', nan):.1f} s interferences={r.get('interf')} "
                       f"contacts={r.get('contacts')} stale cmds={r.get('stale', nan):.1f}% "
                       f"load={r['load']:.1f}", flush=True)
@@ -184,14 +193,15 @@ def main():
                     f"{args.timeout:g} --speedup {args.speedup:g} --alg {args.alg} --processes "
                     f"{args.processes} --map {args.map}` on {os.uname().nodename} ({os.cpu_count()} cores)\n\n")
             f.write("| localisation | robots | exit | launch to GO (s) | sustained RTF | "
-                    "CPU (% of a core) | CPU-s per sim-s | peak PSS (MB) | nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
+                    "CPU (% of a core) | CPU-s per sim-s (nav) | peak PSS (MB) | nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
                     "| interferences | robot contacts | stale commands (%) | load avg |\n")
             f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
             nan = float("nan")
             for r in rows:
                 f.write(f"| {r['loc']} | {r['robots']} | {r['exit']} | {r.get('go')} | "
                         f"{r.get('rtf', nan):.2f} | {r.get('cpu', nan):.0f} | "
-                        f"{r.get('cpu_per_sim_s', nan):.2f} | {r['pss_mb']:.0f} | "
+                        f"{r.get('cpu_per_sim_s', nan):.3f} ({r.get('nav_cpu_per_sim_s', nan):.3f})"
+                        f" | {r['pss_mb']:.0f} | "
                         f"{r['nav_pss_mb']:.0f} | {r.get('vpm', nan):.1f} | {r.get('idl', nan):.1f} | "
                         f"{r.get('interf')} | {r.get('contacts')} | {r.get('stale', nan):.1f} | "
                         f"{r['load']:.1f} |\n")

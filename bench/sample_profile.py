@@ -30,8 +30,10 @@ import tempfile
 from collections import Counter
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+#: innermost Python frames of a thread blocked in C (socket reads, sleeps, lock waits)
 IDLE = ("wait", "select", "poll", "sleep", "accept", "recv", "recv_into", "read", "readline",
-        "_recv", "spin", "acquire", "join", "epoll", "get")
+        "_recv", "spin", "acquire", "join", "epoll", "get", "recv_buff", "wallsleep",
+        "readinto", "_handle_request", "handle_request", "serve_forever", "run")
 #: category of the innermost navigation frame: (file suffix, function or "*") -> category
 CATEGORIES = [
     ("particle_filter.py", "update", "localiser: likelihood"),

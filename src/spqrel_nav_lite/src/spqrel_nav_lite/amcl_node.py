@@ -14,6 +14,7 @@ import rospy
 import tf2_ros
 from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from rospy.numpy_msg import numpy_msg
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty, EmptyResponse
 
@@ -22,6 +23,8 @@ from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter
 from spqrel_nav_lite.ros_util import (fill_pose, get_map, namespace_prefix, param, pose_of,
                                       strip_slash, transform_msg)
 
+# scans deserialised straight into numpy arrays (ranges: float32 ndarray, no tuple of floats)
+SCAN = numpy_msg(LaserScan)
 POS = dict(check=lambda v: v > 0, what="must be positive")
 NONNEG = dict(check=lambda v: v >= 0, what="must be >= 0")
 
@@ -100,7 +103,7 @@ class Amcl:
         rospy.Subscriber(r + "initialpose", PoseWithCovarianceStamped, self.on_initialpose,
                          queue_size=1)
         rospy.Subscriber(r + "odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
-        rospy.Subscriber(r + "base_scan", LaserScan, self.on_scan, queue_size=1,
+        rospy.Subscriber(r + "base_scan", SCAN, self.on_scan, queue_size=1,
                          tcp_nodelay=True, buff_size=1 << 20)
 
     # -- inputs --------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ import rospy
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import Odometry, Path
+from rospy.numpy_msg import numpy_msg
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty, EmptyResponse
 
@@ -28,6 +29,8 @@ from spqrel_nav_lite.particle_filter import LikelihoodField
 from spqrel_nav_lite.planner import GlobalPlanner
 from spqrel_nav_lite.ros_util import get_map, param, pose_of, strip_slash
 
+# scans deserialised straight into numpy arrays (ranges: float32 ndarray, no tuple of floats)
+SCAN = numpy_msg(LaserScan)
 POS = dict(check=lambda v: v > 0, what="must be positive")
 NONNEG = dict(check=lambda v: v >= 0, what="must be >= 0")
 
@@ -98,7 +101,7 @@ class MoveBase(GoalExecution):
         if subscribe_pose:
             rospy.Subscriber(r + "amcl_pose", PoseWithCovarianceStamped, self.on_loc,
                              queue_size=2, tcp_nodelay=True)
-        rospy.Subscriber(r + "base_scan", LaserScan, self.on_scan, queue_size=1,
+        rospy.Subscriber(r + "base_scan", SCAN, self.on_scan, queue_size=1,
                          tcp_nodelay=True, buff_size=1 << 20)
         rospy.Service(ns + "clear_costmaps", Empty, self.on_clear)
         self.server = actionlib.SimpleActionServer(r + "move_base", MoveBaseAction,
