@@ -73,6 +73,8 @@ def test_pooled_launch(processes, agents, tmp_path):
     assert sorted(len(x) for x in lists) == [2, 3]
     assert all(h.find("param[@name='localization']").get("value") == "AMCL" for h in hosts)
     assert all(h.find("param[@name='map_yaml']").get("value").endswith(".yaml") for h in hosts)
+    # room in the plan cache for every patrol vertex of grid (25)
+    assert all(h.find("param[@name='plan_cache_goals']").get("value") == "25" for h in hosts)
     # per-robot includes set the parameters only
     for inc in (i for i in root.iter("include") if i.get("file").endswith("robot.launch")):
         args = {a.get("name"): a.get("value") for a in inc.iter("arg")}

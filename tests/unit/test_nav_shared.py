@@ -82,6 +82,10 @@ def test_cache_is_bounded_lru_and_thread_safe():
         t.join()
     assert not errors and len(c) <= 3
     assert NavFunctionCache(cells=10, cache_bytes=0).capacity == 0
+    # room for every patrol goal even when the byte bound would hold fewer
+    assert NavFunctionCache(cells=10, cache_bytes=3 * 10 * 8, min_entries=7).capacity == 7
+    s = SharedMaps(corridors(), cache_bytes=0, cache_goals=5)
+    assert s.planner_grid(0.225, 0.66, 0.1, cache_bytes=0).cache.capacity == 5
 
 
 def test_concurrent_planners_on_one_grid_agree_with_a_private_planner():

@@ -13,7 +13,9 @@ bounded by ``~plan_cache_mb`` (a goal searched for one robot is free for the oth
 
 Private parameters: ``~robots`` (robot namespaces, a list or a space-separated string, e.g.
 ``"robot_0 robot_1"``), ``~localization`` (``AMCL`` | ``fake_localization``, default
-``AMCL``), ``~map_yaml`` (else ``/map`` or ``static_map``), ``~plan_cache_mb`` (default 128).
+``AMCL``), ``~map_yaml`` (else ``/map`` or ``static_map``), ``~plan_cache_mb`` (default 128)
+and ``~plan_cache_goals`` (default 0: the cache keeps at least that many navigation functions,
+whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex count).
 """
 import re
 
@@ -52,9 +54,10 @@ def main():
     except ValueError as e:
         fatal(f"parameter ~robots: {e}")
     cache_mb = param("plan_cache_mb", 128.0, check=lambda v: v >= 0, what="must be >= 0")
+    cache_goals = param("plan_cache_goals", 0, int, check=lambda v: v >= 0, what="must be >= 0")
     from .move_base_node import MoveBase
     from .shared import SharedMaps
-    shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20)
+    shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals)
     if mode == "AMCL":
         from .amcl_node import Amcl, log_update_times
     else:

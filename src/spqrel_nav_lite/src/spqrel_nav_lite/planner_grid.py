@@ -29,10 +29,12 @@ def symmetric_csr(src, dst, weight, n):
 
 class NavFunctionCache:
     """Goal cell index -> (dist float32, pred int32) of obstacle-free Dijkstra runs; LRU,
-    at most ``cache_bytes`` (each entry costs 8 bytes per grid cell); thread-safe."""
+    at most ``cache_bytes`` (each entry costs 8 bytes per grid cell) but room for at least
+    ``min_entries`` (a patrol graph's vertex count: with fewer, goals evict each other and
+    every goal change costs a search); thread-safe."""
 
-    def __init__(self, cells, cache_bytes):
-        self.capacity = max(0, int(cache_bytes)) // max(1, cells * 8)
+    def __init__(self, cells, cache_bytes, min_entries=0):
+        self.capacity = max(max(0, int(cache_bytes)) // max(1, cells * 8), int(min_entries))
         self._d = OrderedDict()
         self._lock = threading.Lock()
         self.hits = self.misses = 0
@@ -73,7 +75,7 @@ class PlannerGrid:
     :mod:`spqrel_nav_lite.planner` for what they mean)."""
 
     def __init__(self, omap, robot_radius=0.225, inflation_radius=0.66, resolution=0.1,
-                 cost_scaling=3.0, cost_weight=4.0, cache_bytes=32 << 20):
+                 cost_scaling=3.0, cost_weight=4.0, cache_bytes=32 << 20, cache_min_entries=0):
         if resolution <= 0:
             raise ValueError(f"planner resolution must be positive, got {resolution}")
         self.map = omap
@@ -97,7 +99,7 @@ class PlannerGrid:
         self.free_graph = symmetric_csr(self.src, self.dst, self.wt, n)
         # source cell of every stored entry of free_graph (to block edges by cell)
         self.graph_rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(self.free_graph.indptr))
-        self.cache = NavFunctionCache(n, cache_bytes)
+        self.cache = NavFunctionCache(n, cache_bytes, cache_min_entries)
 
     def _build_edges(self):
         h, w = self.h, self.w

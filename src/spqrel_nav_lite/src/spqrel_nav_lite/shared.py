@@ -18,11 +18,13 @@ from .planner_grid import PlannerGrid
 
 class SharedMaps:
     """``cache_bytes``: bound of each planner grid's navigation-function cache (None: the
-    first request's)."""
+    first request's); ``cache_goals``: room for at least that many navigation functions
+    whatever their size (the patrol graph's vertex count)."""
 
-    def __init__(self, omap, cache_bytes=None):
+    def __init__(self, omap, cache_bytes=None, cache_goals=0):
         self.map = omap
         self.cache_bytes = cache_bytes
+        self.cache_goals = int(cache_goals)
         self._lock = threading.Lock()
         self._fields = {}
         self._grids = {}
@@ -46,7 +48,8 @@ class SharedMaps:
             if grid is None:
                 grid = self._grids[key] = PlannerGrid(
                     self.map, robot_radius=key[0], inflation_radius=key[1],
-                    resolution=key[2], cache_bytes=cache_bytes)
+                    resolution=key[2], cache_bytes=cache_bytes,
+                    cache_min_entries=self.cache_goals)
             return grid
 
     def stats(self):

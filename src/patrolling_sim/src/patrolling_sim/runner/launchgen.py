@@ -50,10 +50,11 @@ def _abstract_world(a, cfg, n):
     a("")
 
 
-def _nav_hosts(a, cfg, n, hosts, yaml_path):
+def _nav_hosts(a, cfg, n, hosts, yaml_path, n_vertices):
     """``hosts`` nav_host processes, each hosting the localiser + move_base of a contiguous
     block of robots (sizes differ by at most one). They run in namespace ``/nav_pool`` whose
-    ``actionlib_status_frequency`` matches the per-robot nodes' (1 Hz)."""
+    ``actionlib_status_frequency`` matches the per-robot nodes' (1 Hz); their plan caches
+    hold a navigation function for every vertex of the patrol graph (the patrol goals)."""
     a("  <!-- navigation: localiser + move_base of every robot in nav_host processes (each")
     a("       robot keeps its robot_i topics, move_base action, services, frames, params) -->")
     a('  <group ns="nav_pool">')
@@ -65,6 +66,7 @@ def _nav_hosts(a, cfg, n, hosts, yaml_path):
         a(f"      <param name=\"robots\" value={_attr(robots)}/>")
         a(f"      <param name=\"localization\" value={_attr(cfg.loc)}/>")
         a(f"      <param name=\"map_yaml\" value={_attr(yaml_path)}/>")
+        a(f"      <param name=\"plan_cache_goals\" value=\"{int(n_vertices)}\"/>")
         a("    </node>")
     a("  </group>")
     a("")
@@ -156,7 +158,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
             a("  </include>")
         a("")
         if nav_mode == "pooled" and cfg.nav != "ros":
-            _nav_hosts(a, cfg, n, hosts, yaml_path)
+            _nav_hosts(a, cfg, n, hosts, yaml_path, len(graph_xy.split()) // 2)
     a("  <!-- monitor: ends the run (timeout / cycles / dead robot / abort); required, so")
     a("       roslaunch shuts everything down when it exits after writing its files -->")
     a('  <node pkg="patrolling_sim" type="monitor" name="monitor" required="true" output="log"')
