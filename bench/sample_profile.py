@@ -96,8 +96,14 @@ if _match and any(m in _argv for m in _match) and "sample_profile" not in _argv:
 '''
 
 
+#: helpers shared by several callers: the caller decides the category
+PASS_THROUGH = {"particle_filter.py:lookup", "particle_filter.py:is_free"}
+
+
 def category(stack):
     for frame in stack:                        # innermost first
+        if frame in PASS_THROUGH:
+            continue
         fname, func = frame.split(":", 1)
         for suffix, f, cat in CATEGORIES:
             if fname == suffix and f in ("*", func):

@@ -16,13 +16,17 @@ log = logging.getLogger(__name__)
 #: (fake localisation, 4x: 907 MB with 4 robots, 1417 with 8, 2017 with 12, i.e. about
 #: 140 MB per robot over a fixed 350 MB; ``--processes separate``: 2.7 GB with 12 robots,
 #: about 200 MB per robot). Update these figures when the benchmark is re-run.
-#: ``pooled`` / ``pooled-separate`` (navigation in nav_host processes): per robot and per
-#: nav_host process, from docs/benchmarks/runner.md ("Layouts").
+#: ``pooled`` / ``pooled-separate`` (navigation in nav_host processes, docs/navigation.md):
+#: per robot and per nav_host process, the largest measured (docs/benchmarks/runner.md,
+#: "Layouts"): navigation PSS per robot 37-41 MB on grid with 12 robots, 60 MB on cumberland
+#: with 32, 78 MB on broughton with 64 (whose plan caches hold all 163 goals, 0.8 GB each);
+#: whole runs 0.8, 2.3 and 5.5 GB. One agent process per robot adds about 60 MB per robot
+#: (shared -> separate above).
 MEMORY_MB = {
     "fixed": 350.0,                     # master, simulator, map server, monitor, runner
-    "per_robot": {"shared": 140.0, "separate": 200.0, "pooled": 36.0,
-                  "pooled-separate": 96.0},
-    "per_nav_host": 170.0,
+    "per_robot": {"shared": 140.0, "separate": 200.0, "pooled": 80.0,
+                  "pooled-separate": 140.0},
+    "per_nav_host": 150.0,
 }
 
 
