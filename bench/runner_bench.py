@@ -181,7 +181,8 @@ def main():
                       f"RTF={r.get('rtf', nan):.2f} CPU={r.get('cpu', nan):.0f}% "
                       f"PSS={r['pss_mb']:.0f} MB nav PSS/robot={r['nav_pss_mb']:.0f} MB "
                       f"CPU-s/sim-s={r.get('cpu_per_sim_s', nan):.3f} "
-                      f"(nav {r.get('nav_cpu_per_sim_s', nan):.3f}) visits/robot/min={r.get('vpm', nan):.1f} "
+                      f"(nav {r.get('nav_cpu_per_sim_s', nan):.3f}) "
+                      f"visits/robot/min={r.get('vpm', nan):.1f} "
                       f"avg idl={r.get('idl', nan):.1f} s interferences={r.get('interf')} "
                       f"contacts={r.get('contacts')} stale cmds={r.get('stale', nan):.1f}% "
                       f"load={r['load']:.1f}", flush=True)
@@ -191,9 +192,11 @@ def main():
         with open(args.out, "a") as f:
             f.write(f"\n{time.strftime('%Y-%m-%d %H:%M')} `bench/runner_bench.py --timeout "
                     f"{args.timeout:g} --speedup {args.speedup:g} --alg {args.alg} --processes "
-                    f"{args.processes} --map {args.map}` on {os.uname().nodename} ({os.cpu_count()} cores)\n\n")
+                    f"{args.processes} --map {args.map}` on {os.uname().nodename} "
+                    f"({os.cpu_count()} cores)\n\n")
             f.write("| localisation | robots | exit | launch to GO (s) | sustained RTF | "
-                    "CPU (% of a core) | CPU-s per sim-s (nav) | peak PSS (MB) | nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
+                    "CPU (% of a core) | CPU-s per sim-s (nav) | peak PSS (MB) | "
+                    "nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
                     "| interferences | robot contacts | stale commands (%) | load avg |\n")
             f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
             nan = float("nan")
