@@ -205,7 +205,8 @@ def main():
                         f"{r.get('rtf', nan):.2f} | {r.get('cpu', nan):.0f} | "
                         f"{r.get('cpu_per_sim_s', nan):.3f} ({r.get('nav_cpu_per_sim_s', nan):.3f})"
                         f" | {r['pss_mb']:.0f} | "
-                        f"{r['nav_pss_mb']:.0f} | {r.get('vpm', nan):.1f} | {r.get('idl', nan):.1f} | "
+                        f"{r['nav_pss_mb']:.0f} | {r.get('vpm', nan):.1f} | "
+                        f"{r.get('idl', nan):.1f} | "
                         f"{r.get('interf')} | {r.get('contacts')} | {r.get('stale', nan):.1f} | "
                         f"{r['load']:.1f} |\n")
 

@@ -116,8 +116,8 @@ class MoveBase(GoalExecution):
     def log_statistics(self):
         pl = self.planner
         rospy.loginfo("%smove_base: %d plans, %d Dijkstra searches (%d with obstacles in a "
-                      "window), %d navigation functions cached", self.robot_ns, self.plans, pl.searches,
-                      pl.window_searches, len(pl._cache))
+                      "window), %d navigation functions cached", self.robot_ns, self.plans,
+                      pl.searches, pl.window_searches, len(pl._cache))
 
     # -- inputs -----------------------------------------------------------------------------------
     def on_odom(self, msg):
