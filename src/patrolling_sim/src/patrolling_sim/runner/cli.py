@@ -56,7 +56,10 @@ def build_parser():
                     help="simulator pace > 0 (1 = real time; an upper bound, see the README)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--processes", help="shared (default: agents in one process, each robot's "
-                    "localisation + navigation in one) | separate (one process per node)")
+                    "localisation + navigation in one) | separate (one process per node) | "
+                    "pooled[:K] (agents in one process, navigation of all robots in K "
+                    "nav_host processes) | pooled-separate[:K] (one agent process per robot, "
+                    "navigation pooled)")
     ap.add_argument("--results-dir", dest="results_dir")
     ap.add_argument("--dead-robot-timeout", dest="dead_robot_timeout", type=float,
                     help="sim seconds without a visit before a robot is declared dead "

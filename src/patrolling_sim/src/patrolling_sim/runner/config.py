@@ -31,12 +31,15 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     dead_robot_timeout  sim s without a visit report before a robot is declared dead
                  (run status FAIL); 0 = never                        (300, the original's)
     force        run even when the memory estimate exceeds the machine's  (false)
-    processes    shared | separate                                   (shared)
+    processes    shared | separate | pooled[:K] | pooled-separate[:K]  (shared)
                  shared: all agents in one process (patrol_agents) and each robot's
                  localisation + move_base in one process (robot_nav) -- same topics and
                  messages, about half the CPU with many robots; separate: one process per
                  node, as the original (patrol_agent per robot, amcl/fake_localization and
-                 move_base apart)
+                 move_base apart); pooled: agents in one process and the navigation of all
+                 robots in K nav_host processes (default K: 1 up to 8 robots, else 2);
+                 pooled-separate: one agent process per robot (as a real robot runs it),
+                 navigation pooled in K nav_host processes (docs/navigation.md)
 
 ``validate()`` raises :class:`PatrolInputError` with one line naming the key or argument.
 """
@@ -55,7 +58,28 @@ log = logging.getLogger(__name__)
 LOC_MODES = ("AMCL", "fake_localization")
 NAV_MODES = ("spqrel_nav_lite", "ros", "abstract")
 NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lite"}
-PROCESS_MODES = ("shared", "separate")
+PROCESS_MODES = ("shared", "separate", "pooled", "pooled-separate")
+
+
+def process_layout(processes, robots):
+    """(agents, nav, hosts) of a ``--processes`` value: agents ``shared`` (one patrol_agents)
+    or ``separate`` (patrol_agent per robot); nav ``robot_nav`` (one per robot), ``separate``
+    (amcl/fake_localization + move_base per robot) or ``pooled`` (``hosts`` nav_host
+    processes). Raises PatrolInputError with one line when the value is bad."""
+    mode, sep, k = str(processes).partition(":")
+    if mode not in PROCESS_MODES or (sep and not mode.startswith("pooled")):
+        raise PatrolInputError(f"argument --processes: must be one of shared, separate, "
+                               f"pooled[:K], pooled-separate[:K], got '{processes}'")
+    if not mode.startswith("pooled"):
+        return mode, ("robot_nav" if mode == "shared" else "separate"), 0
+    if sep:
+        if not k.isdigit() or not 1 <= int(k) <= max(1, robots):
+            raise PatrolInputError(f"argument --processes: K in '{processes}' must be an "
+                                   f"integer from 1 to the number of robots ({robots})")
+        hosts = int(k)
+    else:
+        hosts = 1 if robots <= 8 else 2
+    return ("shared" if mode == "pooled" else "separate"), "pooled", min(hosts, robots)
 
 
 def default_results_dir():
@@ -143,9 +167,11 @@ class ExperimentConfig:
         if self.nav == "abstract" and (self.gui_sim or self.record):
             raise PatrolInputError("argument --nav: the abstract world has no simulator window "
                                    "(drop --gui-sim and --record)")
-        if self.processes not in PROCESS_MODES:
-            raise PatrolInputError(f"argument --processes: must be one of "
-                                   f"{', '.join(PROCESS_MODES)}, got '{self.processes}'")
+        if process_layout(self.processes, self.robots)[1] == "pooled" and self.nav == "ros":
+            raise PatrolInputError(f"argument --processes: '{self.processes}' pools our "
+                                   f"navigation (spqrel_nav_lite) in nav_host processes; the "
+                                   f"ROS packages of --nav ros run one per robot (use shared "
+                                   f"or separate)")
         for name in ("gwait", "comm_delay", "timeout", "record_period", "dead_robot_timeout"):
             if getattr(self, name) < 0:
                 raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be >= 0, "
