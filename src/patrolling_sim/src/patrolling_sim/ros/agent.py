@@ -8,7 +8,6 @@ takes ``self.lock`` and hands the event to the core; nothing blocks inside a cal
 Start-up: load the graph, read ``/initial_pos`` (start vertex = nearest vertex, |dx|+|dy|),
 wait for ``robot_i/move_base`` (logging every 5 s), then the core announces and waits for GO.
 """
-import math
 import re
 import threading
 
@@ -23,54 +22,12 @@ from std_srvs.srv import Empty
 
 from .. import algorithms, paths
 from ..agent_core import Effects, build_agent
-from ..algorithms.base import INT16_MAX
 from ..errors import PatrolInputError
 from ..graph import PatrolGraph, load_graph
+from .agent_params import (AgentError, clamp_int16, float_param, parse_ids,  # noqa: F401
+                           parse_robot_frame, read_common_params, start_vertex_from)
 
 SERVER_LOG_PERIOD = 5.0        # s between "waiting for move_base" log lines
-INT16_MIN = -32768
-
-_ROBOT_FRAME = re.compile(r"robot_(\d+)(?:/|$)")
-
-
-class AgentError(Exception):
-    """Fatal start-up problem; ``str()`` is one line, the node exits with ``code``."""
-
-    def __init__(self, message, code=2):
-        super().__init__(message)
-        self.code = code
-
-
-def parse_robot_frame(frame_id):
-    """Robot index from a ``/positions`` frame id ``robot_<i>/map`` (None if absent)."""
-    m = _ROBOT_FRAME.search(frame_id or "")
-    return int(m.group(1)) if m else None
-
-
-def clamp_int16(data):
-    """(clamped list, True if any value had to be clamped)."""
-    out, clamped = [], False
-    for x in data:
-        x = int(x)
-        if x > INT16_MAX:
-            x, clamped = INT16_MAX, True
-        elif x < INT16_MIN:
-            x, clamped = INT16_MIN, True
-        out.append(x)
-    return out, clamped
-
-
-def start_vertex_from(graph, initial_pos, robot_id):
-    """Start vertex of ``robot_id`` from the flat ``/initial_pos`` list (x0,y0,x1,y1,...)."""
-    try:
-        flat = [float(x) for x in initial_pos]
-    except (TypeError, ValueError):
-        raise AgentError(f"/initial_pos: expected a flat list of numbers, got {initial_pos!r}")
-    if len(flat) < 2 * (robot_id + 1):
-        raise AgentError(f"/initial_pos has {len(flat) // 2} positions, robot {robot_id} "
-                         f"needs at least {robot_id + 1}")
-    x, y = flat[2 * robot_id], flat[2 * robot_id + 1]
-    return graph.nearest_vertex(x, y), (x, y)
 
 
 class PatrolAgent(Effects):
@@ -103,9 +60,9 @@ class PatrolAgent(Effects):
         if self.team_size < 1 or self.id >= self.team_size:
             raise AgentError(f"robot id {self.id} is outside a team of {self.team_size}")
 
-        goal_wait = self._float_param("/goal_reached_wait", 0.0, minimum=0.0)
-        comm_delay = self._float_param("/communication_delay", 0.0, minimum=0.0)
-        loss = self._float_param("/lost_message_rate", 0.0, minimum=0.0)
+        goal_wait = float_param("/goal_reached_wait", 0.0, minimum=0.0)
+        comm_delay = float_param("/communication_delay", 0.0, minimum=0.0)
+        loss = float_param("/lost_message_rate", 0.0, minimum=0.0)
         if loss > 1.0:
             raise AgentError(f"/lost_message_rate must be in [0, 1], got {loss}")
         if algorithm not in algorithms.REGISTRY:
@@ -137,17 +94,6 @@ class PatrolAgent(Effects):
         self.frame_tag = f"robot_{self.id}/map"
         rospy.Subscriber("/results", Int16MultiArray, self._on_results, queue_size=100)
         rospy.Subscriber("/positions", Odometry, self._on_positions, queue_size=10)
-
-    @staticmethod
-    def _float_param(name, default, minimum=None):
-        raw = rospy.get_param(name, default)
-        try:
-            val = float(raw)
-        except (TypeError, ValueError):
-            raise AgentError(f"{name}: expected a number, got {raw!r}")
-        if minimum is not None and (val < minimum or math.isnan(val)):
-            raise AgentError(f"{name} must be >= {minimum}, got {raw!r}")
-        return val
 
     # -- Effects: what the core asks of ROS -------------------------------------------------
     def now(self):
@@ -310,31 +256,6 @@ class PatrolAgent(Effects):
             self.core.on_feedback(seq, p.x, p.y)
 
 
-def _optional_int_param(name):
-    """Private parameter ``name`` as an int, None if unset; AgentError if not an integer."""
-    value = rospy.get_param(name, None)
-    if value is None:
-        return None
-    try:
-        return int(value)
-    except (TypeError, ValueError):
-        raise AgentError(f"{name}: expected an integer, got {value!r}") from None
-
-
-def _read_common_params():
-    """(algorithm, team_size, seed, params) from the node's private parameters."""
-    if not rospy.has_param("~algorithm"):
-        known = ", ".join(algorithms.names())
-        raise AgentError(f"~algorithm is required (known: {known})")
-    alg = str(rospy.get_param("~algorithm"))
-    team_size = _optional_int_param("~team_size")
-    seed = _optional_int_param("~seed")
-    params = rospy.get_param("~params", {})
-    if not isinstance(params, dict):
-        raise AgentError(f"~params: expected a dictionary, got {params!r}")
-    return alg, team_size, seed, params
-
-
 def main(argv=None):
     """Entry point of ``nodes/patrol_agent``: ``patrol_agent <map> <i>`` + private params."""
     import sys
@@ -358,27 +279,12 @@ def main(argv=None):
         map_arg = rospy.get_param("~map", args[0] if len(args) >= 2 else None)
         if not map_arg:
             raise AgentError("map: give it as first argument or as ~map")
-        alg, team_size, seed, params = _read_common_params()
+        alg, team_size, seed, params = read_common_params()
         agent = PatrolAgent(map_arg, robot_id, alg, team_size, seed, params)
     except AgentError as e:
         sys.stderr.write(f"{prog}: error: {e}\n")
         return e.code
     return agent.run()
-
-
-def parse_ids(tokens):
-    """Robot ids from ``['0', '2', '5-7']`` -> [0, 2, 5, 6, 7] (sorted, no duplicates)."""
-    ids = set()
-    for tok in tokens:
-        m = re.fullmatch(r"(\d+)(?:-(\d+))?", tok)
-        if not m:
-            raise AgentError(f"robot id: expected an integer or a range a-b, got '{tok}'")
-        a = int(m.group(1))
-        b = int(m.group(2)) if m.group(2) is not None else a
-        if b < a:
-            raise AgentError(f"robot id range '{tok}' is empty")
-        ids.update(range(a, b + 1))
-    return sorted(ids)
 
 
 def main_multi(argv=None):
@@ -400,7 +306,7 @@ def main_multi(argv=None):
             raise AgentError("usage: patrol_agents <map> <id|a-b> [...] (with ~algorithm set)")
         ids = parse_ids(args[1:])
         map_arg = rospy.get_param("~map", args[0])
-        alg, team_size, seed, params = _read_common_params()
+        alg, team_size, seed, params = read_common_params()
         base = 0 if seed is None else seed
         agents = [PatrolAgent(map_arg, i, alg, team_size, base + i, params) for i in ids]
     except AgentError as e:

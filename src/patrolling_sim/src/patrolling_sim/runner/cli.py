@@ -30,7 +30,7 @@ from .config import ExperimentConfig, from_positional, load_config_file
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
              "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes",
-             "dead_robot_timeout")
+             "dead_robot_timeout", "comm", "attrition")
 BOOL_KEYS = ("rviz", "gui_sim", "record", "force")
 
 
@@ -50,6 +50,12 @@ def build_parser():
     ap.add_argument("--gwait", type=float, help="goal_reached_wait (s)")
     ap.add_argument("--comm-delay", dest="comm_delay", type=float, help="communication delay (s)")
     ap.add_argument("--loss", type=float, help="lost message rate [0, 1)")
+    ap.add_argument("--comm", help="communication model of /results and /positions: perfect "
+                    "(default) | bernoulli:p=P | ge:p_good=..,p_bad=..,to_bad=..,to_good=.. | "
+                    "range:r=M,los=true [;delay=const:S|uniform:A,B|exp:M|normal:M,SD] "
+                    "(docs/scenarios.md)")
+    ap.add_argument("--attrition", help="robot failures: none (default) | 'ROBOT@S[+REPAIR],...' "
+                    "(sim s after GO) | random:rate=PER_ROBOT_HOUR,min_team=K[,repair=S]")
     ap.add_argument("--timeout", type=float, help="sim seconds after GO (0 = none)")
     ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
     ap.add_argument("--speedup", type=float,

@@ -5,7 +5,10 @@ the results folder (``<prefix>_experiment.launch``) so that the run can be repro
 plain ``roslaunch``. The file composes:
 
 - global parameters (``/use_sim_time``, ``/goal_reached_wait``, ``/communication_delay``,
-  ``/lost_message_rate``, ``/navigation_module``, ``/initial_positions``, ``/initial_pos``),
+  ``/lost_message_rate``, ``/navigation_module``, ``/initial_positions``, ``/initial_pos``,
+  and the scenario: ``/comm_model`` (communication model spec), ``/attrition`` (the explicit
+  failure schedule ``ROBOT@T[+REPAIR],...``, the random model already drawn from the seed),
+  ``/scenario_seed``; docs/scenarios.md),
 - the simulator (``patrol_stage2d/launch/stage2d.launch``),
 - one map server (``spqrel_nav_lite`` map_server publishing ``/map``),
 - per robot ``launch/robot.launch`` (localisation + navigation in namespace ``robot_i``; with
@@ -62,6 +65,16 @@ def graph_drawing(graph_path):
     return xy, " ".join(f"{u} {w}" for u, w in edges)
 
 
+def scenario_params(cfg):
+    """The scenario's global ROS parameters: ``/comm_model`` (the model's canonical spec),
+    ``/attrition`` (explicit schedule, so every node fails the same robots at the same
+    times), ``/scenario_seed``."""
+    from ..attrition import describe
+    model, schedule = cfg.scenario()
+    return {"/comm_model": model.describe(), "/attrition": describe(schedule),
+            "/scenario_seed": int(cfg.seed)}
+
+
 def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi / 2,
                     rviz_config=None):
     """Return the launch XML (str) for ``cfg`` with robots at ``positions`` [(x, y)].
@@ -90,6 +103,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'  <param name="/communication_delay" value="{_num(cfg.comm_delay)}"/>')
     a(f'  <param name="/lost_message_rate" value="{_num(cfg.loss)}"/>')
     a(f'  <param name="/navigation_module" value={_attr(cfg.nav)}/>')
+    for name, value in scenario_params(cfg).items():
+        kind = "str" if isinstance(value, str) else "int"
+        a(f'  <param name="{name}" type="{kind}" value={_attr(value)}/>')
     a(f'  <param name="/localization_module" value={_attr(cfg.loc)}/>')
     a(f'  <param name="/initial_positions" value={_attr(cfg.initpos)}/>')
     a(f'  <rosparam param="/initial_pos">[{flat}]</rosparam>')
