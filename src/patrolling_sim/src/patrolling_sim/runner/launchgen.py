@@ -69,9 +69,11 @@ def scenario_params(cfg):
     """The scenario's global ROS parameters: ``/comm_model`` (the model's canonical spec),
     ``/attrition`` (explicit schedule, so every node fails the same robots at the same
     times), ``/scenario_seed``."""
-    from ..attrition import describe
     model, schedule = cfg.scenario()
-    return {"/comm_model": model.describe(), "/attrition": describe(schedule),
+    # repr: the times round-trip exactly (a drawn random time has more digits than %g keeps)
+    explicit = ",".join(f"{f.robot}@{f.t!r}" + (f"+{f.repair!r}" if f.repair is not None
+                                                  else "") for f in schedule) or "none"
+    return {"/comm_model": model.describe(), "/attrition": explicit,
             "/scenario_seed": int(cfg.seed)}
 
 
@@ -155,6 +157,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'    <param name="cycles" value="{int(cfg.cycles)}"/>')
     a(f'    <param name="dead_robot_timeout" value="{_num(cfg.dead_robot_timeout)}"/>')
     a(f'    <param name="map_label" value={_attr(cfg.result_name)}/>')
+    a(f'    <param name="attrition_spec" type="str" value={_attr(cfg.attrition)}/>')
     a("  </node>")
     if cfg.processes == "shared":
         # every agent in one process: the same PatrolAgent objects and topics, but each
