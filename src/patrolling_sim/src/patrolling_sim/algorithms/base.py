@@ -42,6 +42,8 @@ from ..graph import PatrolGraph
 MSG_INIT = 10
 MSG_TARGET_REACHED = 11
 MSG_INTERFERENCE = 12
+#: ``[i, 13, 0]`` robot i failed, ``[i, 13, 1]`` it is back (scenarios, docs/scenarios.md)
+MSG_FAILURE = 13
 MSG_GBS_REACHED = 31
 MSG_SEBS_REACHED = 32
 MSG_DTA_IDLENESS = 40
@@ -110,6 +112,8 @@ class PatrolStrategy:
     name = None
     #: value written to /algorithm_params and info.csv ("" if none)
     algorithm_params = ""
+    #: default s without a message from a teammate before :meth:`on_teammate_silent`
+    TEAMMATE_TIMEOUT = 120.0
 
     def __init__(self, ctx: StrategyContext):
         self.ctx = ctx
@@ -122,6 +126,9 @@ class PatrolStrategy:
         self.next = None              # vertex it is heading to
         self.last_visit = [0.0] * n   # time of the last visit known to this robot
         self.idleness = [0.0] * n     # idleness table, refreshed on events
+        #: s of silence after which a teammate is given up (param ``teammate_timeout``)
+        self.teammate_timeout = float(ctx.params.get("teammate_timeout",
+                                                     self.TEAMMATE_TIMEOUT))
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, start_vertex: int, now: float) -> None:
@@ -159,6 +166,11 @@ class PatrolStrategy:
     def on_message(self, data: List[int], now: float) -> None:
         """A /results message from another robot (own messages are filtered out by the
         driver). Default: ignore."""
+
+    def on_teammate_silent(self, robot_id: int, now: float) -> None:
+        """Teammate ``robot_id`` has sent nothing for ``teammate_timeout`` s (it may have
+        failed, docs/scenarios.md). Only called when the run has an attrition scenario.
+        Default: nothing (rules without teammate state keep their rule)."""
 
     def on_goal_failed(self, vertex: int, now: float) -> int:
         """Navigation gave up on ``vertex`` after the resends. Default: as the original's
