@@ -80,6 +80,8 @@ def test_random_attrition_is_drawn_once_from_the_seed(tmp_path):
     (dict(attrition="4@100"), "argument --attrition: robot 4 is not in a team of 4"),
     (dict(attrition="2@x"), "argument --attrition: expected ROBOT@SECONDS"),
     (dict(attrition="0@1,1@1,2@1,3@1"), "every robot of the team would be gone"),
+    (dict(attrition="1@300"), "argument --attrition: robot 1 fails at 300 s, not before the "
+                              "end of the run (300 s)"),
     (dict(attrition="random:rate=1", timeout=0.0, cycles=2),
      "argument --attrition: the random model needs a run duration"),
 ])

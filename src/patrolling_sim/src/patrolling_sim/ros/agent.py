@@ -24,6 +24,7 @@ from .. import algorithms, paths
 from ..agent_core import Effects, build_agent
 from ..errors import PatrolInputError
 from ..graph import PatrolGraph, load_graph
+from .agent_scenario import MSG_FAILURE, AgentScenario
 from .agent_params import (AgentError, clamp_int16, float_param, parse_ids,  # noqa: F401
                            parse_robot_frame, read_common_params, start_vertex_from)
 
@@ -74,15 +75,18 @@ class PatrolAgent(Effects):
         self.timers = set()
         self.clamp_warned = False
         self.announce_timer = None
+        self.scenario = AgentScenario(map_arg, self.id, self.team_size)
         try:
             self.core = build_agent(self, self.graph, self.id, self.team_size, self.map_name,
                                     algorithm, self.start_vertex, self.start_xy,
                                     seed=self.id if seed is None else int(seed),
                                     params=params, goal_wait=goal_wait,
-                                    comm_delay=comm_delay, loss=loss)
+                                    comm_delay=comm_delay, loss=loss,
+                                    **self.scenario.core_kwargs())
         except PatrolInputError as e:
             raise AgentError(str(e))
         self.strategy = self.core.strategy
+        self.scenario.attach(self)
 
         ns = f"robot_{self.id}"
         self.results_pub = rospy.Publisher("/results", Int16MultiArray, queue_size=100)
@@ -127,6 +131,8 @@ class PatrolAgent(Effects):
         return t
 
     def publish(self, data):
+        if not self.scenario.may_publish() and (len(data) < 2 or data[1] != MSG_FAILURE):
+            return                      # a failed robot is silent (its pending timers too)
         data, clamped = clamp_int16(data)
         if clamped and not self.clamp_warned:
             self.clamp_warned = True
@@ -147,6 +153,11 @@ class PatrolAgent(Effects):
         self.gh = self.client.send_goal(
             goal, transition_cb=lambda gh: self._on_transition(gh, seq),
             feedback_cb=lambda gh, fb: self._on_feedback(fb, seq))
+
+    def stop_base(self):
+        """A zero twist now and 0.5 s later: the base stays where it is (after a failure)."""
+        self.cmd_pub.publish(Twist())
+        self.call_later(0.5, lambda: self.cmd_pub.publish(Twist()))
 
     def cancel_goal(self):
         gh, self.gh = self.gh, None
@@ -207,6 +218,7 @@ class PatrolAgent(Effects):
         return True
 
     def shutdown(self):
+        self.scenario.publish_counters()
         with self.lock:
             self.core.shutdown()
             gh, self.gh = self.gh, None
@@ -221,7 +233,9 @@ class PatrolAgent(Effects):
     # -- ROS callbacks -> core ---------------------------------------------------------------
     def _on_results(self, msg):
         with self.lock:
-            self.core.on_results(list(msg.data))
+            data = list(msg.data)
+            self.scenario.on_results(data)
+            self.core.on_results(data)
 
     def _on_positions(self, msg):
         k = parse_robot_frame(msg.header.frame_id)
@@ -251,8 +265,9 @@ class PatrolAgent(Effects):
         odom.header.frame_id = self.frame_tag
         odom.pose.pose.position.x = p.x
         odom.pose.pose.position.y = p.y
-        self.positions_pub.publish(odom)
         with self.lock:
+            if self.scenario.may_publish():
+                self.positions_pub.publish(odom)
             self.core.on_feedback(seq, p.x, p.y)
 
 

@@ -196,19 +196,17 @@ class ExperimentConfig:
         ``attrition`` (the random attrition model is drawn from ``seed`` over ``timeout``).
 
         Raises PatrolInputError (one line naming --comm or --attrition)."""
-        from ..attrition import parse_attrition
-        from ..comm import parse_comm
+        from ..scenario import check_scenario, is_perfect
         self.comm = str(self.comm or "perfect").strip() or "perfect"
         self.attrition = str(self.attrition or "none").strip() or "none"
-        model = parse_comm(self.comm, seed=self.seed, what="argument --comm")
-        if self.loss > 0 and model.name != "perfect":
+        if self.loss > 0 and not is_perfect(self.comm):
             raise PatrolInputError(f"argument --comm: '{self.comm}' cannot be combined with "
                                    f"--loss {self.loss:g} (give the loss in the model, e.g. "
                                    f"bernoulli:p={self.loss:g})")
-        schedule = parse_attrition(self.attrition, self.robots or 0,
-                                   duration=self.timeout if self.timeout > 0 else math.inf,
-                                   seed=self.seed, what="argument --attrition")
-        return model, schedule
+        return check_scenario(self.comm, self.attrition, self.robots or 0,
+                              duration=self.timeout if self.timeout > 0 else math.inf,
+                              seed=self.seed, what_comm="argument --comm",
+                              what_attr="argument --attrition")
 
     def start_positions(self):
         """[(x, y)] for the team (table entry or computed); validates the team size."""

@@ -1,0 +1,109 @@
+"""Scenarios in ROS mode through scripts/start_experiments.py (docs/scenarios.md): a robot
+failing mid-run stops where it is and goes silent, the others keep patrolling, the run ends
+normally (TIMEOUT, not FAIL) with the failure recorded in ``<prefix>_scenario.yaml``; a
+repaired robot patrols again; a communication model drops messages at the receivers.
+
+(a) full stack (simulator, fake localisation, navigation), grid, SEBS, 4 robots, agents in
+    one process: robot 2 fails 80 s after GO; its ground-truth pose is followed with
+    tests/ros/pose_probe.py on the run's master.
+Results are judged on sim-time figures only; the wall limits only stop a hung run.
+"""
+import glob
+import os
+import re
+import signal
+import subprocess
+import sys
+
+import pytest
+import yaml
+
+from rosenv import ros_env
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+START = os.path.join(ROOT, "scripts", "start_experiments.py")
+PROBE = os.path.join(os.path.dirname(__file__), "pose_probe.py")
+RUN_LIMIT = 600.0           # wall s: safety net against a hung run only
+
+
+def start(args, tmp_path):
+    return subprocess.Popen(["/usr/bin/python3", START, "--headless", *args, "--results-dir",
+                             str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, env=ros_env(), cwd=str(tmp_path),
+                            start_new_session=True)
+
+
+def finish(proc, head=""):
+    try:
+        out, _ = proc.communicate(timeout=RUN_LIMIT)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, _ = proc.communicate()
+        pytest.fail("experiment did not end:\n" + (head + out)[-3000:])
+    return proc.returncode, head + out
+
+
+def results(tmp_path):
+    """(prefix, run.yaml, scenario.yaml, visits [(t since GO, robot, vertex)])."""
+    found = glob.glob(f"{tmp_path}/**/*_scenario.yaml", recursive=True)
+    assert len(found) == 1, found
+    prefix = found[0][:-len("_scenario.yaml")]
+    with open(prefix + "_run.yaml") as f:
+        run = yaml.safe_load(f)
+    with open(prefix + "_scenario.yaml") as f:
+        scen = yaml.safe_load(f)
+    visits = []
+    with open(prefix + "_visits.csv") as f:
+        for line in f.read().splitlines()[1:]:
+            t, r, v = line.split(";")
+            visits.append((float(t), int(r), int(v)))
+    return prefix, run, scen, visits
+
+
+def test_full_stack_sebs_failure(tmp_path):
+    proc = start(["--map", "grid", "--robots", "4", "--alg", "SEBS", "--loc",
+                  "fake_localization", "--timeout", "200", "--speedup", "10",
+                  "--attrition", "2@80"], tmp_path)
+    head, uri = "", None
+    while uri is None:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        head += line
+        m = re.search(r"master (http://127\.0\.0\.1:\d+)", line)
+        uri = m.group(1) if m else None
+    assert uri, head
+    env = dict(ros_env(), ROS_MASTER_URI=uri)
+    probe = subprocess.Popen(["/usr/bin/python3", PROBE, "2"], stdout=subprocess.PIPE,
+                             stderr=subprocess.DEVNULL, text=True, env=env)
+    try:
+        code, out = finish(proc, head)
+    finally:
+        probe.terminate()
+        poses, _ = probe.communicate(timeout=30)
+    assert code == 0, out[-3000:]
+    prefix, run, scen, visits = results(tmp_path)
+    assert run["status"] == "TIMEOUT", run
+    assert scen["mode"] == "ros" and scen["schedule"] == "2@80" and scen["comm"] == "perfect"
+    [fail] = scen["failures"]
+    assert fail["robot"] == 2 and fail["t_repair"] is None
+    assert abs(fail["t_fail"] - 80.0) < 1.0, fail
+    t_fail = fail["t_fail"]
+    # the failed robot's visits stop; every other robot keeps visiting vertices
+    mine = [t for t, r, _ in visits if r == 2]
+    assert mine and max(mine) <= t_fail + 0.5, mine
+    for r in (0, 1, 3):
+        assert len({v for t, rr, v in visits if rr == r and t > t_fail + 5}) >= 2, r
+    # it stays where it stopped (the cmd_vel watchdog and the zero twist: at most a few cm
+    # of coasting within 3 s), having moved before
+    lines = poses.splitlines()
+    go = [float(l.split()[1]) for l in lines if l.startswith("go ")]
+    assert go, poses[-2000:]
+    xy = [tuple(map(float, l.split())) for l in lines
+          if re.fullmatch(r"-?[0-9.]+ -?[0-9.]+ -?[0-9.]+", l)]
+    before = [(x, y) for t, x, y in xy if t < go[0] + t_fail - 1]
+    after = [(x, y) for t, x, y in xy if t > go[0] + t_fail + 3]
+    assert len(after) >= 60, len(after)
+    assert max(abs(x - after[0][0]) + abs(y - after[0][1]) for x, y in after) < 0.01
+    assert max(abs(x - before[0][0]) + abs(y - before[0][1]) for x, y in before) > 1.0
+
