@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Print one robot's ground-truth pose from the simulator about once per sim second, as
 ``<sim time> <x> <y>`` lines, and ``go <sim time>`` once the monitor has set ``/go_time``
-(tests/ros/test_scenarios.py: a failed robot stays put).
+(tests/ros/test_scenarios_ros.py: a failed robot stays put).
 Usage: pose_probe.py ROBOT_ID (ROS_MASTER_URI of the run in the environment)."""
 import sys
 
