@@ -1,0 +1,181 @@
+"""Scenarios (docs/scenarios.md): robot failures and communication models in graph mode,
+the monitor's failure records, the scenario file and the failure-impact columns."""
+import math
+import os
+
+import pytest
+
+from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator, main
+from patrolling_sim.metrics import read_visits
+from patrolling_sim.monitor_core import MonitorCore
+from patrolling_sim.run_status import read_run_yaml
+from patrolling_sim.scenario import check_scenario, read_scenario, scenario_columns
+
+
+def run(tmp_path, **kw):
+    kw.setdefault("map", "grid")
+    sim = GraphSimulator(GraphSimConfig(results_dir=str(tmp_path), **kw))
+    stats = sim.run()
+    return sim, stats
+
+
+def visits(sim):
+    return read_visits(sim.prefix + "_visits.csv")
+
+
+# ------------------------------------------------------------------------------ monitor
+def test_monitor_records_failures_and_exempts_them_from_the_silence_rule():
+    m = MonitorCore(4, 3)
+    m.start(100.0)
+    m.visit(0, 1, 110.0)
+    m.robot_failed(2, 150.0)
+    m.robot_failed(2, 160.0)                      # already down: ignored
+    assert m.dead_robots == {2} and m.failures == [[2, 50.0, None]]
+    # robot 1 silent since GO, robot 2 failed: only robot 1 is a FAIL candidate
+    assert m.silent_robots(400.0, 200.0) == [0, 1]
+    assert m.silent_robots(230.0, 125.0) == [1]
+    m.robot_repaired(2, 400.0)
+    assert m.dead_robots == set() and m.failures == [[2, 50.0, 300.0]]
+    assert m.silent_robots(450.0, 100.0) == [0, 1]    # 2's clock restarted at its repair
+
+
+# ------------------------------------------------------------------------------ attrition
+def test_failure_applied_at_its_time_robot_stops_and_run_is_not_fail(tmp_path):
+    sim, _ = run(tmp_path, robots=4, alg="SEBS", duration=1800, seed=3, attrition="2@600")
+    assert sim.termination == "TIMEOUT"
+    assert read_run_yaml(sim.prefix)["status"] == "TIMEOUT"
+    assert sim.monitor.failures == [[2, 600.0, None]]
+    v = visits(sim)
+    mine = [t for t, r, _ in v if r == 2]
+    assert mine and max(mine) <= 600.0 and min(mine) < 600.0
+    for r in (0, 1, 3):                             # the others keep patrolling to the end
+        assert max(t for t, rr, _ in v if rr == r) > 1700.0
+    assert {x for t, _, x in v if t > 600.0} == set(range(sim.g.n))
+    body = sim.robots[2]
+    assert body.pieces is None and body.core.failed           # stands where it stopped
+    assert sim.team_pos[2] == body.xy
+    # silent-teammate hook: nobody keeps robot 2's intention
+    for r in (0, 1, 3):
+        assert 2 not in sim.robots[r].core.strategy.intention
+    doc = read_scenario(sim.prefix)
+    assert doc["schedule"] == "2@600" and doc["failures"] == [
+        {"robot": 2, "t_fail": 600.0, "t_repair": None}]
+
+
+def test_repair_brings_the_robot_back(tmp_path):
+    sim, _ = run(tmp_path, robots=3, alg="CR", duration=1500, seed=1, attrition="1@500+300")
+    assert sim.monitor.failures == [[1, 500.0, 800.0]]
+    ts = [t for t, r, _ in visits(sim) if r == 1]
+    assert not [t for t in ts if 500.0 < t < 800.0]
+    assert [t for t in ts if t > 850.0]
+
+
+@pytest.mark.parametrize("alg", ["SEBS", "DTAP"])
+def test_history_before_the_failure_is_unchanged(tmp_path, alg):
+    """Until the failure, a run with a scheduled failure is the run without one."""
+    a, _ = run(tmp_path / "a", robots=4, alg=alg, duration=900, seed=2)
+    b, _ = run(tmp_path / "b", robots=4, alg=alg, duration=900, seed=2, attrition="1@700")
+    assert [x for x in visits(a) if x[0] < 700.0] == [x for x in visits(b) if x[0] < 700.0]
+    assert not os.path.exists(a.prefix + "_scenario.yaml")
+    assert os.path.exists(b.prefix + "_scenario.yaml")
+
+
+def _after(sim, att, seed, alg, tmp_path):
+    return run(tmp_path, robots=6, alg=alg, duration=3600, seed=seed, attrition=att)[0]
+
+
+@pytest.mark.parametrize("alg", ["SEBS", "CBLS", "CR", "DTAP", "MSP"])
+def test_grid_six_robots_two_failures_at_1200(tmp_path, alg):
+    """Acceptance: grid, 6 robots, 3600 s, robots 2 and 4 fail at 1200 s."""
+    sim = _after(sim=None, att="2@1200,4@1200", seed=0, alg=alg, tmp_path=tmp_path)
+    assert sim.termination == "TIMEOUT"
+    assert sorted(f[:2] for f in sim.monitor.failures) == [[2, 1200.0], [4, 1200.0]]
+    cols = scenario_columns(sim.prefix)
+    assert cols["failures"] == 2 and cols["first_failure"] == 1200.0
+    after_visited = {x for t, _, x in visits(sim) if t > 1200.0}
+    if alg.startswith("MSP"):
+        # MSP keeps its rule: the failed robots' routes that nobody else covers are orphaned
+        routes = {r.id: set(r.core.strategy.route) for r in sim.robots}
+        alive = set().union(*(routes[r] for r in (0, 1, 3, 5)))
+        orphaned = (routes[2] | routes[4]) - alive
+        assert orphaned and after_visited == set(range(sim.g.n)) - orphaned
+        assert cols["idl_after"] > 3 * cols["idl_before"]
+        return
+    assert after_visited == set(range(sim.g.n))
+    if alg == "DTAP":
+        # DTAP's idleness still falls after 1200 s without failure (its task sets are still
+        # converging), so compare with the same seed's run without failure
+        base = run(tmp_path / "base", robots=6, alg=alg, duration=3600, seed=0)[0]
+        from patrolling_sim.metrics import failure_impact, graph_idleness_series
+        t, s = graph_idleness_series(visits(base), base.g.n, 3600.0)
+        assert cols["idl_after"] > failure_impact(t, s, 1200.0, 3600.0).after
+        # its silence hook: no survivor keeps a bid won by a failed robot
+        for r in (0, 1, 3, 5):
+            owners = {o for _, o in sim.robots[r].core.strategy.best_bid.values()}
+            assert not owners & {2, 4}
+    else:
+        assert cols["idl_after"] > cols["idl_before"]
+
+
+def test_bad_scenarios_are_one_line_errors(tmp_path, capsys):
+    with pytest.raises(PatrolInputError, match="--attrition: robot 7 is not in a team of 3"):
+        check_scenario("perfect", "7@100", 3)
+    with pytest.raises(PatrolInputError, match="not before the end of the run"):
+        check_scenario("perfect", "1@4000", 3, duration=3600)
+    with pytest.raises(PatrolInputError, match="--comm: unknown communication model"):
+        check_scenario("wifi", "none", 3)
+    rc = main(["--map", "grid", "--robots", "2", "--duration", "60", "--results-dir",
+               str(tmp_path), "--comm", "bernoulli:p=2"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and "--comm: bernoulli: p must be in [0, 1]" in err
+    assert not os.listdir(tmp_path)
+    rc = main(["--map", "grid", "--robots", "2", "--duration", "60", "--results-dir",
+               str(tmp_path), "--attrition", "0@10,1@20"])
+    assert rc == 2 and "every robot of the team" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------ comm
+def _share(sim, kind="results"):
+    c = read_scenario(sim.prefix)["counters"]["total"]
+    assert c["sent"] == c["delivered"] + c["lost"]
+    return c[kind + "_delivered"] / c[kind + "_sent"], c
+
+
+@pytest.mark.parametrize("comm,lo,hi", [
+    ("bernoulli:p=0.3", 0.67, 0.73),
+    ("ge:p_good=0,p_bad=1,to_bad=0.1,to_good=0.1", 0.45, 0.55),     # bad half of the time
+    ("range:r=0.001,los=false", 0.0, 0.0),
+    ("perfect;delay=const:0.5", 1.0, 1.0),
+])
+def test_delivered_share_follows_the_model(tmp_path, comm, lo, hi):
+    sim, _ = run(tmp_path, robots=4, alg="SEBS", duration=900, seed=1, comm=comm)
+    share, c = _share(sim, "positions")
+    assert c["positions_sent"] > 5000
+    assert lo <= share <= hi
+    rshare, _ = _share(sim, "results")
+    assert c["results_sent"] > 300
+    assert lo - 0.08 <= rshare <= hi + 0.08
+
+
+def test_comm_model_is_seeded_and_changes_the_run(tmp_path):
+    a, sa = run(tmp_path / "a", robots=4, alg="SEBS", duration=600, seed=5,
+                comm="bernoulli:p=0.5;delay=exp:0.3")
+    b, sb = run(tmp_path / "b", robots=4, alg="SEBS", duration=600, seed=5,
+                comm="bernoulli:p=0.5;delay=exp:0.3")
+    p, _ = run(tmp_path / "p", robots=4, alg="SEBS", duration=600, seed=5)
+    assert visits(a) == visits(b)
+    assert read_scenario(a.prefix)["counters"] == read_scenario(b.prefix)["counters"]
+    assert visits(a) != visits(p)
+
+
+def test_line_of_sight_drops_more_than_range_alone(tmp_path):
+    """cumberland has walls: with line of sight fewer messages arrive than by range alone."""
+    los, _ = run(tmp_path / "los", map="cumberland", robots=4, alg="CR", duration=400,
+                 seed=1, comm="range:r=15,los=true")
+    rng, _ = run(tmp_path / "rng", map="cumberland", robots=4, alg="CR", duration=400,
+                 seed=1, comm="range:r=15,los=false")
+    s_los, _ = _share(los, "positions")
+    s_rng, _ = _share(rng, "positions")
+    assert 0.0 < s_los < s_rng < 1.0
+    assert not math.isnan(s_los)
