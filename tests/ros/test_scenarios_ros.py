@@ -107,3 +107,33 @@ def test_full_stack_sebs_failure(tmp_path):
     assert max(abs(x - after[0][0]) + abs(y - after[0][1]) for x, y in after) < 0.01
     assert max(abs(x - before[0][0]) + abs(y - before[0][1]) for x, y in before) > 1.0
 
+
+
+def test_abstract_line_of_sight_drops_messages_through_walls(tmp_path):
+    """Grid, 2 robots starting on opposite sides of an obstacle block, range 1000 m (far
+    beyond the map: only walls can cut a link). With line of sight required, the
+    receivers drop both /results and /positions messages; without, nothing is lost."""
+    from patrolling_sim import paths
+    from patrolling_sim.comm import line_of_sight
+    from patrolling_sim.runner.config import ExperimentConfig
+    cfg = ExperimentConfig(map="grid", robots=2, alg="SEBS", timeout=200,
+                           results_dir=str(tmp_path))
+    a, b = cfg.start_positions()
+    assert not line_of_sight(paths.load_map_bundle("grid")[0], a, b)   # placed accordingly
+    totals = {}
+    for los in ("true", "false"):
+        out_dir = tmp_path / los
+        out_dir.mkdir()
+        proc = start(["--map", "grid", "--robots", "2", "--alg", "SEBS", "--nav", "abstract",
+                      "--timeout", "200", "--speedup", "30", "--comm",
+                      f"range:r=1000,los={los}"], out_dir)
+        code, out = finish(proc)
+        assert code == 0, out[-3000:]
+        _, run, scen, _ = results(out_dir)
+        assert run["status"] == "TIMEOUT" and scen["comm"] == f"range:r=1000,los={los}"
+        totals[los] = scen["counters"]["total"]
+    blocked, clear = totals["true"], totals["false"]
+    assert blocked["results_sent"] >= 20 and blocked["positions_sent"] >= 200, blocked
+    assert blocked["results_lost"] > 0 and blocked["positions_lost"] > 0, blocked
+    assert blocked["delivered"] > 0, blocked            # in sight at times: not all lost
+    assert clear["sent"] >= 200 and clear["lost"] == 0, clear

@@ -75,7 +75,7 @@ class PatrolAgent(Effects):
         self.timers = set()
         self.clamp_warned = False
         self.announce_timer = None
-        self.scenario = AgentScenario(map_arg, self.id, self.team_size)
+        self.scenario = AgentScenario(map_arg, self.id, self.team_size, initial_pos)
         try:
             self.core = build_agent(self, self.graph, self.id, self.team_size, self.map_name,
                                     algorithm, self.start_vertex, self.start_xy,

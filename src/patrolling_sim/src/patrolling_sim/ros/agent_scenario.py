@@ -41,8 +41,10 @@ class AgentScenario:
     parameters. :meth:`core_kwargs` go to ``build_agent``; :meth:`attach` then binds the
     agent (a PatrolAgent)."""
 
-    def __init__(self, map_arg, robot_id, team_size):
+    def __init__(self, map_arg, robot_id, team_size, initial_pos=()):
         self.id = int(robot_id)
+        flat = [float(v) for v in initial_pos]
+        self.initial = {i: (flat[2 * i], flat[2 * i + 1]) for i in range(len(flat) // 2)}
         self.spec = str(rospy.get_param("/comm_model", "perfect") or "perfect")
         raw = rospy.get_param("/scenario_seed", 0)
         try:
@@ -71,7 +73,18 @@ class AgentScenario:
         if not self.active:
             return {}
         return {"comm": self.spec, "occupancy": self.occupancy,
-                "silence_check": self.any_failure}
+                "silence_check": self.any_failure, "positions": self.position}
+
+    def position(self, robot):
+        """A robot's true position for the range model: its last pose heard on
+        ``/positions`` before the model (own: the navigation feedback), else where it
+        started (``/initial_pos``) -- so a link is judged from the first message on."""
+        core = self.agent.core if self.agent is not None else None
+        if core is not None:
+            p = core.own_pos if robot == self.id else core.true_pos.get(robot)
+            if p is not None:
+                return p
+        return self.initial.get(robot)
 
     def attach(self, agent):
         self.agent = agent

@@ -45,6 +45,10 @@ def _abstract_world(a, cfg, n):
       'required="true" output="log">')
     a(f'    <param name="team_size" value="{n}"/>')
     a(f'    <param name="speedup" value="{_num(cfg.speedup)}"/>')
+    if cfg.scenario()[0].name == "range":
+        # the range model judges links from the robots' poses on /positions, which the
+        # agents publish from move_base feedback
+        a('    <param name="feedback" value="true"/>')
     a("  </node>")
     a("")
 
