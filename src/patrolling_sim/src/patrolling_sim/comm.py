@@ -1,4 +1,4 @@
-"""Communication models: which inter-robot messages arrive, and when (see ``docs/comm.md``).
+"""Communication models: which inter-robot messages arrive, and when (``docs/scenarios.md``).
 
 A model decides, for one message from robot ``s`` to robot ``r`` sent at time ``t``, whether
 it is delivered and after what delay. It is a pure, seeded component: both drivers (graph
