@@ -76,7 +76,6 @@ def test_random_attrition_is_drawn_once_from_the_seed(tmp_path):
     (dict(comm="bernoulli:p=1.5"), "argument --comm: bernoulli: p must be in [0, 1]"),
     (dict(comm="range:r=-1"), "argument --comm: range: r must be > 0 m"),
     (dict(comm="perfect;delay=gamma:1"), "argument --comm: unknown delay distribution"),
-    (dict(comm="bernoulli:p=0.2", loss=0.1), "cannot be combined with --loss 0.1"),
     (dict(attrition="4@100"), "argument --attrition: robot 4 is not in a team of 4"),
     (dict(attrition="2@x"), "argument --attrition: expected ROBOT@SECONDS"),
     (dict(attrition="0@1,1@1,2@1,3@1"), "every robot of the team would be gone"),

@@ -196,13 +196,9 @@ class ExperimentConfig:
         ``attrition`` (the random attrition model is drawn from ``seed`` over ``timeout``).
 
         Raises PatrolInputError (one line naming --comm or --attrition)."""
-        from ..scenario import check_scenario, is_perfect
+        from ..scenario import check_scenario
         self.comm = str(self.comm or "perfect").strip() or "perfect"
         self.attrition = str(self.attrition or "none").strip() or "none"
-        if self.loss > 0 and not is_perfect(self.comm):
-            raise PatrolInputError(f"argument --comm: '{self.comm}' cannot be combined with "
-                                   f"--loss {self.loss:g} (give the loss in the model, e.g. "
-                                   f"bernoulli:p={self.loss:g})")
         return check_scenario(self.comm, self.attrition, self.robots or 0,
                               duration=self.timeout if self.timeout > 0 else math.inf,
                               seed=self.seed, what_comm="argument --comm",
