@@ -4,8 +4,9 @@ normally (TIMEOUT, not FAIL) with the failure recorded in ``<prefix>_scenario.ya
 repaired robot patrols again; a communication model drops messages at the receivers.
 
 (a) full stack (simulator, fake localisation, navigation), grid, SEBS, 4 robots, agents in
-    one process: robot 2 fails 80 s after GO; its ground-truth pose is followed with
-    tests/ros/pose_probe.py on the run's master.
+    one process: robot 2 fails 80 s after GO and stays silent for 120 s, twice the
+    dead-robot timeout (60 s), which must not end the run; its ground-truth pose is
+    followed with tests/ros/pose_probe.py on the run's master.
 Results are judged on sim-time figures only; the wall limits only stop a hung run.
 """
 import glob
@@ -63,7 +64,7 @@ def results(tmp_path):
 def test_full_stack_sebs_failure(tmp_path):
     proc = start(["--map", "grid", "--robots", "4", "--alg", "SEBS", "--loc",
                   "fake_localization", "--timeout", "200", "--speedup", "10",
-                  "--attrition", "2@80"], tmp_path)
+                  "--attrition", "2@80", "--dead-robot-timeout", "60"], tmp_path)
     head, uri = "", None
     while uri is None:
         line = proc.stdout.readline()
