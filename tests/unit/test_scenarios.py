@@ -198,3 +198,19 @@ def test_line_of_sight_drops_more_than_range_alone(tmp_path):
     s_rng, _ = _share(rng, "positions")
     assert 0.0 < s_los < s_rng < 1.0
     assert not math.isnan(s_los)
+
+
+# ------------------------------------------------------------------------------ report
+def test_report_has_a_scenarios_section_with_the_failure_marked(tmp_path):
+    from patrolling_sim.report.build import build_report
+    res = tmp_path / "results"
+    for alg in ("CR", "SEBS"):
+        for seed in (0, 1):
+            run(res, robots=3, alg=alg, duration=600, seed=seed, attrition="1@300")
+    run(res, robots=3, alg="CR", duration=600, seed=0)            # no scenario file
+    out = build_report([str(res)], str(tmp_path / "report"), run_plots=False)
+    html = open(os.path.join(str(tmp_path / "report"), "report.html")).read()
+    assert "<h2>Scenarios</h2>" in html or ">Scenarios<" in html
+    figs = [f for f in out["files"] if os.path.basename(f).startswith("scenario_")]
+    assert len(figs) == 1 and os.path.getsize(figs[0]) > 1000
+    assert html.count("1@300") >= 4                                # one row per run
