@@ -214,3 +214,15 @@ def test_report_has_a_scenarios_section_with_the_failure_marked(tmp_path):
     figs = [f for f in out["files"] if os.path.basename(f).startswith("scenario_")]
     assert len(figs) == 1 and os.path.getsize(figs[0]) > 1000
     assert html.count("1@300") >= 4                                # one row per run
+
+
+@pytest.mark.parametrize("alg", ["DTAP", "SEBS", "CBLS"])
+def test_repair_resumes_even_when_the_failure_hits_mid_auction(tmp_path, alg):
+    """A failure voids the robot's timers (DTAP's auction deadline among them): after the
+    repair every robot must patrol again, whatever it was doing when it failed."""
+    times = [80.0 + 0.37 * k for k in range(8)]
+    for t in times:
+        spec = f"1@{t:g}+100"
+        sim, _ = run(tmp_path / f"{t:g}", robots=3, alg=alg, duration=400, seed=1,
+                     attrition=spec)
+        assert [x for x in visits(sim) if x[1] == 1 and x[0] > t + 110.0], spec

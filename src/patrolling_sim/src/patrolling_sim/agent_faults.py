@@ -151,8 +151,9 @@ class ScenarioMixin:
         if self.phase == "starting":
             self._later(0.0, self._begin)
         elif self.phase == "patrol":
-            self._decide(None)
             now = self.fx.now()
+            self.strategy.on_repair(now)
+            self._decide(None)
             self.last_heard = dict.fromkeys(self.last_heard, now)
             self.silent.clear()
             if self.silence_check:

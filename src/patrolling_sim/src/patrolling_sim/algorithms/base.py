@@ -172,6 +172,11 @@ class PatrolStrategy:
         failed, docs/scenarios.md). Only called when the run has an attrition scenario.
         Default: nothing (rules without teammate state keep their rule)."""
 
+    def on_repair(self, now: float) -> None:
+        """The robot is back after a failure (docs/scenarios.md), just before it decides
+        again. Every timer the strategy had asked for was void while it was down: a strategy
+        that waits on one (DTAP's auction) restarts it here. Default: nothing."""
+
     def on_goal_failed(self, vertex: int, now: float) -> int:
         """Navigation gave up on ``vertex`` after the resends. Default: as the original's
         onGoalNotComplete -- recompute; while that gives the failed vertex again, draw a
