@@ -226,3 +226,20 @@ def test_repair_resumes_even_when_the_failure_hits_mid_auction(tmp_path, alg):
         sim, _ = run(tmp_path / f"{t:g}", robots=3, alg=alg, duration=400, seed=1,
                      attrition=spec)
         assert [x for x in visits(sim) if x[1] == 1 and x[0] > t + 110.0], spec
+
+
+def test_cli_runs_a_scenario_and_records_it(tmp_path, capsys):
+    rc = main(["--map", "grid", "--robots", "4", "--alg", "SEBS", "--duration", "600",
+               "--seed", "3", "--results-dir", str(tmp_path), "--quiet",
+               "--comm", "ge:p_bad=0.9;delay=uniform:0.1,0.4",
+               "--attrition", "random:rate=3,min_team=2"])
+    assert rc == 0
+    prefix = capsys.readouterr().out.strip().splitlines()[-1].split()[-1].rstrip("*")
+    doc = read_scenario(prefix.rstrip("_"))
+    assert doc["comm"] == "ge:p_good=0,p_bad=0.9,to_bad=0.05,to_good=0.5;delay=uniform:0.1,0.4"
+    assert doc["attrition"] == "random:rate=3,min_team=2"
+    # the seeded draw: the explicit schedule, applied as drawn, never below 2 robots
+    assert doc["schedule"] != "none"
+    assert len([f for f in doc["failures"] if f["t_repair"] is None]) <= 2
+    assert [f["t_fail"] for f in doc["failures"]] == pytest.approx([
+        float(x.split("@")[1].split("+")[0]) for x in doc["schedule"].split(",")], abs=0.01)
