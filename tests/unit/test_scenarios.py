@@ -243,3 +243,17 @@ def test_cli_runs_a_scenario_and_records_it(tmp_path, capsys):
     assert len([f for f in doc["failures"] if f["t_repair"] is None]) <= 2
     assert [f["t_fail"] for f in doc["failures"]] == pytest.approx([
         float(x.split("@")[1].split("+")[0]) for x in doc["schedule"].split(",")], abs=0.01)
+
+
+def test_scenario_metrics_give_each_failure_its_impact(tmp_path):
+    from patrolling_sim.scenario import scenario_metrics
+    sim, _ = run(tmp_path, robots=6, alg="SEBS", duration=3000, seed=0,
+                 attrition="2@1000,4@1000,1@2000", comm="bernoulli:p=0.1")
+    m = scenario_metrics(sim.prefix, sim.g.n, 3000.0)
+    assert [(f["t_fail"], f["robots"]) for f in m["failures"]] == [(1000.0, [2, 4]),
+                                                                  (2000.0, [1])]
+    assert all(f["after"] > f["before"] for f in m["failures"])
+    assert m["messages"]["sent"] == m["messages"]["delivered"] + m["messages"]["lost"] > 0
+    cols = scenario_columns(sim.prefix)
+    assert cols["idl_before"] == m["failures"][0]["before"]
+    assert 0.85 < cols["delivered_share"] < 0.95

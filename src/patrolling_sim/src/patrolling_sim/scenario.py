@@ -162,3 +162,22 @@ def scenario_columns(prefix: str, n_vertices: Optional[int] = None,
 def _vertices(info: dict) -> int:
     from . import paths
     return paths.vertex_count(info["map"])
+
+
+def scenario_metrics(prefix: str, n_vertices: int, duration: float) -> Dict[str, object]:
+    """The scenario part of a run's metrics file (``extra: {scenario: ...}``): the model, the
+    message counters, and the impact of **each** failure time (before, after, settle time,
+    and the robots that failed then); {} if the run has no scenario file."""
+    doc = read_scenario(prefix)
+    if doc is None:
+        return {}
+    r = lambda x: None if x is None or not math.isfinite(x) else round(float(x), 2)
+    impacts = []
+    for imp in failure_impacts(prefix, doc, n_vertices, duration):
+        robots = sorted(int(f["robot"]) for f in doc["failures"]
+                        if float(f["t_fail"]) == imp.t_fail)
+        impacts.append({"t_fail": imp.t_fail, "robots": robots, "before": r(imp.before),
+                        "after": r(imp.after), "settle_time": r(imp.settle_time)})
+    return {"comm": doc["comm"], "schedule": doc.get("schedule", "none"),
+            "messages": (doc.get("counters") or {}).get("total", {}),
+            "failures": impacts}
