@@ -7,6 +7,10 @@ repaired robot patrols again; a communication model drops messages at the receiv
     one process: robot 2 fails 80 s after GO and stays silent for 120 s, twice the
     dead-robot timeout (60 s), which must not end the run; its ground-truth pose is
     followed with tests/ros/pose_probe.py on the run's master.
+(b) abstract world, grid, DTAP, 3 robots, one process per agent, Bernoulli loss 0.2: robot
+    1 fails at 80 s and is back at 180 s.
+(c) abstract world, grid, 2 robots on opposite sides of an obstacle, range model with and
+    without line of sight.
 Results are judged on sim-time figures only; the wall limits only stop a hung run.
 """
 import glob
@@ -110,6 +114,32 @@ def test_full_stack_sebs_failure(tmp_path):
 
 
 
+def test_abstract_dtap_failure_and_repair_with_loss(tmp_path):
+    proc = start(["--map", "grid", "--robots", "3", "--alg", "DTAP", "--nav", "abstract",
+                  "--timeout", "300", "--speedup", "30", "--processes", "separate",
+                  "--attrition", "1@80+100", "--comm", "bernoulli:p=0.2"], tmp_path)
+    code, out = finish(proc)
+    assert code == 0, out[-3000:]
+    prefix, run, scen, visits = results(tmp_path)
+    assert run["status"] == "TIMEOUT", run
+    [fail] = scen["failures"]
+    assert fail["robot"] == 1 and abs(fail["t_fail"] - 80) < 1.0, fail
+    assert fail["t_repair"] is not None and abs(fail["t_repair"] - 180) < 1.0, fail
+    mine = [t for t, r, _ in visits if r == 1]
+    assert any(t < fail["t_fail"] for t in mine)
+    assert not [t for t in mine if fail["t_fail"] + 0.5 < t < fail["t_repair"]], mine
+    assert len([t for t in mine if t > fail["t_repair"]]) >= 3, mine       # patrols again
+    assert len({v for t, r, v in visits if r != 1 and fail["t_fail"] < t < fail["t_repair"]}) \
+        >= 5
+    # the model at the receivers: about a fifth of the algorithm messages lost
+    robots = scen["counters"]["robots"]
+    assert sorted(robots) == [0, 1, 2]
+    total = scen["counters"]["total"]
+    assert total["sent"] == total["delivered"] + total["lost"] and total["sent"] >= 100
+    assert 0.1 < total["lost"] / total["sent"] < 0.3, total
+    assert robots[1]["ignored_failed"] > 0       # deaf while failed
+
+
 def test_abstract_line_of_sight_drops_messages_through_walls(tmp_path):
     """Grid, 2 robots starting on opposite sides of an obstacle block, range 1000 m (far
     beyond the map: only walls can cut a link). With line of sight required, the
@@ -117,7 +147,7 @@ def test_abstract_line_of_sight_drops_messages_through_walls(tmp_path):
     from patrolling_sim import paths
     from patrolling_sim.comm import line_of_sight
     from patrolling_sim.runner.config import ExperimentConfig
-    cfg = ExperimentConfig(map="grid", robots=2, alg="SEBS", timeout=200,
+    cfg = ExperimentConfig(map="grid", robots=2, alg="SEBS", timeout=120,
                            results_dir=str(tmp_path))
     a, b = cfg.start_positions()
     assert not line_of_sight(paths.load_map_bundle("grid")[0], a, b)   # placed accordingly
@@ -126,7 +156,7 @@ def test_abstract_line_of_sight_drops_messages_through_walls(tmp_path):
         out_dir = tmp_path / los
         out_dir.mkdir()
         proc = start(["--map", "grid", "--robots", "2", "--alg", "SEBS", "--nav", "abstract",
-                      "--timeout", "200", "--speedup", "30", "--comm",
+                      "--timeout", "120", "--speedup", "30", "--comm",
                       f"range:r=1000,los={los}"], out_dir)
         code, out = finish(proc)
         assert code == 0, out[-3000:]
@@ -134,7 +164,7 @@ def test_abstract_line_of_sight_drops_messages_through_walls(tmp_path):
         assert run["status"] == "TIMEOUT" and scen["comm"] == f"range:r=1000,los={los}"
         totals[los] = scen["counters"]["total"]
     blocked, clear = totals["true"], totals["false"]
-    assert blocked["results_sent"] >= 20 and blocked["positions_sent"] >= 200, blocked
+    assert blocked["results_sent"] >= 15 and blocked["positions_sent"] >= 200, blocked
     assert blocked["results_lost"] > 0 and blocked["positions_lost"] > 0, blocked
     assert blocked["delivered"] > 0, blocked            # in sight at times: not all lost
     assert clear["sent"] >= 200 and clear["lost"] == 0, clear
