@@ -87,7 +87,7 @@ class GraphSimulator:
         cfg = self.cfg
         self.perfect_comm = is_perfect(cfg.comm)
         self.occupancy = None
-        if cfg.comm.strip().lower().startswith("range"):
+        if (cfg.comm or "").strip().lower().startswith("range"):
             from .mapio import load_map
             self.occupancy = load_map(paths.map_files(cfg.map)[0])
         _, self.schedule_failures = check_scenario(
