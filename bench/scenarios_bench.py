@@ -12,6 +12,10 @@ same seeds without failure over the same last window.
 Part 2 (communication): the delivered share of positions and algorithm messages for each
 model of ``--comms`` on ``--comm-map`` (SEBS, ``--robots`` robots, 900 s, seed 0).
 
+Part 3 (``--campaign DIR``, instead of 1 and 2): the table of a finished campaign (e.g.
+``campaigns/attrition.yaml``): per algorithm, mean over its runs of before / after / settle
+time of every failure time (``scenario.scenario_metrics``).
+
 Prints Markdown tables; times in sim seconds; the CPU seconds of the whole bench are given.
 
 Usage:
@@ -91,6 +95,39 @@ def comms(a, out):
     print()
 
 
+def campaign_table(root):
+    import glob
+    from patrolling_sim import paths
+    from patrolling_sim.results import parse_info_line
+    from patrolling_sim.scenario import scenario_metrics
+    per = {}
+    for yml in sorted(glob.glob(os.path.join(root, "**", "*_scenario.yaml"), recursive=True)):
+        prefix = yml[:-len("_scenario.yaml")]
+        with open(prefix + "_info.csv") as f:
+            info = parse_info_line(f.read().strip().splitlines()[-1])
+        m = scenario_metrics(prefix, paths.vertex_count(info["map"]), info["sim_duration"])
+        per.setdefault(info["algorithm"], []).append(m)
+    if not per:
+        sys.exit(f"{root}: no run with a scenario file")
+    first = next(iter(per.values()))[0]
+    times = [f["t_fail"] for f in first["failures"]]
+    print(f"### Campaign {root}: failures {first['schedule']}, mean over runs (s)\n")
+    print("| algorithm | runs | " + " | ".join(
+        f"{t:g} s: before | after | settled | settle time" for t in times) + " |")
+    print("|---|---|" + "---|---|---|---|" * len(times))
+    for alg in sorted(per):
+        ms = per[alg]
+        cells = []
+        for k in range(len(times)):
+            fs = [m["failures"][k] for m in ms if len(m["failures"]) > k]
+            st = [f["settle_time"] for f in fs if f["settle_time"] is not None]
+            cells += [f"{sum(f['before'] for f in fs) / len(fs):.1f}",
+                      f"{sum(f['after'] for f in fs) / len(fs):.1f}", f"{len(st)}/{len(fs)}",
+                      f"{sum(st) / len(st):.0f}" if st else "-"]
+        print(f"| {alg} | {len(ms)} | " + " | ".join(cells) + " |")
+    print()
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--map", default="cumberland")
@@ -102,7 +139,11 @@ def main():
     ap.add_argument("--comm-map", default="cumberland")
     ap.add_argument("--comms", nargs="+", default=COMMS)
     ap.add_argument("--skip-failures", action="store_true")
+    ap.add_argument("--campaign", help="a finished campaign folder: its table only")
     a = ap.parse_args()
+    if a.campaign:
+        campaign_table(a.campaign)
+        return
     with tempfile.TemporaryDirectory() as out:
         if not a.skip_failures:
             failures(a, out)
