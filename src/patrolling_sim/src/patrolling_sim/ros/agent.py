@@ -22,9 +22,10 @@ from std_srvs.srv import Empty
 
 from .. import algorithms, paths
 from ..agent_core import Effects, build_agent
+from ..algorithms.base import MSG_FAILURE
 from ..errors import PatrolInputError
 from ..graph import PatrolGraph, load_graph
-from .agent_scenario import MSG_FAILURE, AgentScenario
+from .agent_scenario import AgentScenario
 from .agent_params import (AgentError, clamp_int16, float_param, parse_ids,  # noqa: F401
                            parse_robot_frame, read_common_params, start_vertex_from)
 

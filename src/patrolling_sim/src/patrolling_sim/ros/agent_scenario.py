@@ -3,8 +3,9 @@
 
 Communication: the agent core applies the model (:mod:`patrolling_sim.comm`) where a message
 is *received* (on ROS a broadcast is one publish, so per-link decisions belong to the
-receiver); this module reads ``/comm_model`` and ``/scenario_seed`` and hands the core the
-model's spec and, for the range model, the occupancy map.
+receiver); this module reads ``/comm_model`` and hands the core the model's spec (seeded by
+the core from the agent's own seed, i.e. from the run's seed), for the range model the
+occupancy map and the robots' true positions.
 
 Failures: ``/attrition`` is the run's explicit schedule (the runner drew the random model
 already); the agent arms its own entries when GO arrives, against the GO time the monitor
@@ -32,7 +33,6 @@ from ..scenario import is_perfect
 from .agent_params import AgentError
 
 COUNTERS_PERIOD = 2.0          # wall s between two counter updates
-MSG_FAILURE = 13               # [id,13,0] failed, [id,13,1] repaired (to the monitor)
 COUNTERS_PARAM = "/scenario_counters/robot_{}"
 
 
@@ -46,11 +46,6 @@ class AgentScenario:
         flat = [float(v) for v in initial_pos]
         self.initial = {i: (flat[2 * i], flat[2 * i + 1]) for i in range(len(flat) // 2)}
         self.spec = str(rospy.get_param("/comm_model", "perfect") or "perfect")
-        raw = rospy.get_param("/scenario_seed", 0)
-        try:
-            int(raw)
-        except (TypeError, ValueError):
-            raise AgentError(f"/scenario_seed: expected an integer, got {raw!r}")
         try:
             model = parse_comm(self.spec, what="/comm_model")
             self.occupancy = None
