@@ -95,6 +95,7 @@ class Monitor:
         self.publish_markers = _bool_param("~publish_markers", True)
         goal_wait = _num_param("/goal_reached_wait", 0.0, minimum=0.0)
         comm_delay = _num_param("/communication_delay", 0.0, minimum=0.0)
+        self._read_scenario(team_size)      # before any file is written
         stamp = timestamp()
         if not prefix:
             prefix = default_prefix(self.results_dir, self.map_name, team_size, alg,
@@ -125,20 +126,6 @@ class Monitor:
         self.wall_zero = None
         self.last_time_row = 0.0
         self.go_count = 0
-        self.comm_spec = str(rospy.get_param("/comm_model", "perfect") or "perfect")
-        self.attrition_spec = str(rospy.get_param("~attrition_spec", "") or
-                                  rospy.get_param("/attrition", "none") or "none")
-        try:
-            self.scenario_seed = int(rospy.get_param("/scenario_seed", 0))
-            _, self.schedule = scenario.check_scenario(
-                self.comm_spec, str(rospy.get_param("/attrition", "none") or "none"),
-                team_size, what_comm="/comm_model", what_attr="/attrition")
-        except (TypeError, ValueError):
-            raise MonitorError("/scenario_seed: expected an integer")
-        except PatrolInputError as e:
-            raise MonitorError(str(e))
-        self.scenario_active = not scenario.is_perfect(self.comm_spec) or bool(self.schedule)
-        self.scenario_written = False
         rospy.set_param("/simulation_running", True)
         rospy.set_param("/simulation_abort", False)
         self.pub = rospy.Publisher("/results", Int16MultiArray, queue_size=100)
@@ -149,6 +136,21 @@ class Monitor:
         rospy.on_shutdown(self._on_shutdown)
         rospy.loginfo("monitor: %s, %d robots, %s; results prefix %s", self.map_name,
                       team_size, alg, prefix)
+
+    def _read_scenario(self, team_size):
+        """The run's scenario from ``/comm_model``, ``/attrition``, ``/scenario_seed``."""
+        self.comm_spec = str(rospy.get_param("/comm_model", "perfect") or "perfect")
+        self.attrition_spec = str(rospy.get_param("~attrition_spec", "") or
+                                  rospy.get_param("/attrition", "none") or "none")
+        self.scenario_seed = _num_param("/scenario_seed", 0, int)
+        try:
+            _, self.schedule = scenario.check_scenario(
+                self.comm_spec, str(rospy.get_param("/attrition", "none") or "none"),
+                team_size, what_comm="/comm_model", what_attr="/attrition")
+        except PatrolInputError as e:
+            raise MonitorError(str(e))
+        self.scenario_active = not scenario.is_perfect(self.comm_spec) or bool(self.schedule)
+        self.scenario_written = False
 
     # -- messages -----------------------------------------------------------------------
     def _send(self, *data):
