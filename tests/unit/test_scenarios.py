@@ -257,3 +257,64 @@ def test_scenario_metrics_give_each_failure_its_impact(tmp_path):
     cols = scenario_columns(sim.prefix)
     assert cols["idl_before"] == m["failures"][0]["before"]
     assert 0.85 < cols["delivered_share"] < 0.95
+
+
+# ------------------------------------------------------------------------------ agent core
+def test_core_fail_and_repair_with_a_fake_world():
+    """The API the ROS glue calls: fail() reports [id,13,0] first, cancels the goal, voids
+    the timers and goes deaf and mute; repair() reports [id,13,1] and decides again."""
+    from test_agent_core import started
+    core, world, log = started(robot_id=1)
+    core.fail()
+    assert log[0] == ("publish", world.t, [1, 13, 0]) and log[1][0] == "cancel"
+    assert core.failed and core.state == "moving"
+    del log[:]
+    core.send([1, 40, 5])                                   # mute
+    core.on_results([0, 40, 3])                             # deaf
+    core.on_position(0, 1.0, 1.0)
+    core.on_goal_result(core.seq, True)                     # stale: ignored
+    world.advance(30.0)                                     # every old timer is void
+    assert log == [] and core.comm_counters()["ignored_failed"] == 1
+    assert 0 not in core.team_pos
+    core.repair()
+    assert log[0][2] == [1, 13, 1] and ("goal", world.t, 2) in log
+    core.on_results([0, 40, 3])
+    assert ("message", world.t, [0, 40, 3]) in log
+    c = core.comm_counters()
+    assert c["results_sent"] == c["results_delivered"] == 1 and c["lost"] == 0
+
+
+def test_core_applies_the_model_at_the_receiver_with_its_delay():
+    from patrolling_sim.agent_faults import make_comm
+    from test_agent_core import started
+    assert make_comm("perfect", 1) is None and make_comm(None, 1) is None
+    core, world, log = started(robot_id=1, comm=make_comm("perfect;delay=const:0.5", 1))
+    core.on_results([0, 40, 3])
+    assert not [e for e in log if e[0] == "message"]
+    world.advance(0.6)
+    assert [e[1] for e in log if e[0] == "message"] == [pytest.approx(1.5)]
+    lossy, world2, log2 = started(robot_id=1, comm=make_comm("bernoulli:p=1", 1))
+    lossy.on_results([0, 40, 3])
+    lossy.on_position(0, 2.0, 3.0)
+    world2.advance(1.0)
+    assert not [e for e in log2 if e[0] == "message"] and 0 not in lossy.team_pos
+    assert lossy.true_pos[0] == (2.0, 3.0)                  # the range model's truth
+    assert lossy.comm_counters()["lost"] == 2
+
+
+def test_core_reports_a_silent_teammate_once():
+    from test_agent_core import make, GO
+    calls = []
+    core, world, log = make(robot_id=0, plan=list(range(1, 5)) * 20, silence_check=True)
+    core.strategy.teammate_timeout = 120.0
+    core.strategy.ctx = type("Ctx", (), {"team_size": 3})()
+    core.strategy.on_teammate_silent = lambda r, now: calls.append((r, now))
+    core.ready()
+    core.on_results(GO)
+    for k in range(30):                                     # robot 2 talks, robot 1 never
+        world.advance(10.0)
+        core.on_results([2, 40, 1])
+        if core.state == "moving":
+            core.on_goal_result(core.seq, True)
+    assert [r for r, _ in calls] == [1]
+    assert 120.0 <= calls[0][1] <= 135.0

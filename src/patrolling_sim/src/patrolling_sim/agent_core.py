@@ -230,7 +230,7 @@ class PatrolAgentCore(ScenarioMixin, Driver):
 
     def on_goal_result(self, seq: int, succeeded: bool) -> None:
         """Outcome of goal ``seq``: reached, or failed (aborted/rejected/lost by navigation)."""
-        if seq != self.seq or self.phase != "patrol" or self.state != "moving":
+        if seq != self.seq or self.phase != "patrol" or self.state != "moving" or self.failed:
             return
         if succeeded:
             self.state = "waiting"
