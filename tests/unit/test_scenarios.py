@@ -214,6 +214,7 @@ def test_report_has_a_scenarios_section_with_the_failure_marked(tmp_path):
     figs = [f for f in out["files"] if os.path.basename(f).startswith("scenario_")]
     assert len(figs) == 1 and os.path.getsize(figs[0]) > 1000
     assert html.count("1@300") >= 4                                # one row per run
+    assert ">settled<" in html                                     # the summary table
 
 
 @pytest.mark.parametrize("alg", ["DTAP", "SEBS", "CBLS"])

@@ -62,6 +62,29 @@ def idleness_over_time_figure(title, curves, failure_times):
     return fig
 
 
+def _summary_table(groups):
+    """Mean over the runs of each (map, N, comm, schedule, algorithm)."""
+    def mean(vals):
+        vals = [v for v in vals if v is not None and not H.is_nan(v)]
+        return sum(vals) / len(vals) if vals else None
+    rows = []
+    for (mp, n_r, comm, sched), members in sorted(groups.items(), key=lambda kv: str(kv[0])):
+        by_alg = {}
+        for r, doc, c, n in members:
+            by_alg.setdefault(r.info["algorithm"], []).append(c)
+        for alg in sorted(by_alg):
+            cs = by_alg[alg]
+            settled = [c.get("settle_time") for c in cs if c.get("settle_time") is not None]
+            rows.append([mp, str(n_r), comm, sched, alg, str(len(cs)),
+                         _fmt(mean([c.get("delivered_share") for c in cs]), 3),
+                         _fmt(mean([c.get("idl_before") for c in cs])),
+                         _fmt(mean([c.get("idl_after") for c in cs])),
+                         f"{len(settled)}/{len(cs)}", _fmt(mean(settled), 0)])
+    header = ["map", "N", "comm", "failures", "algorithm", "runs", "delivered share",
+              "idleness before (s)", "after (s)", "settled", "settle time (s)"]
+    return H.table(header, rows, text_cols=(0, 2, 3, 4))
+
+
 def scenario_section(runs, out_dir):
     """(html, files) of the section, or None if no run has a scenario file."""
     from ..metrics import graph_idleness_series
@@ -79,10 +102,14 @@ def scenario_section(runs, out_dir):
     header = ["run", "algorithm", "N", "comm", "failures (schedule)", "failed",
               "delivered share", "idleness before (s)", "after (s)", "settle time (s)"]
     body = ("<p>Runs with a scenario (docs/scenarios.md): idleness is the graph idleness "
-            "(mean instantaneous idleness over all vertices); <i>before</i>: 600 s before "
-            "the first failure; <i>after</i>: settled level at the end; settle time: when "
-            "its trailing 300 s average stays within 10 % of <i>after</i>.</p>")
-    body += H.table(header, rows, text_cols=(0, 1, 3, 4))
+            "(mean instantaneous idleness over all vertices), around the first failure; "
+            "<i>before</i>: its mean over the 600 s before it; <i>after</i>: its settled "
+            "level, the mean over the last 600 s before the next failure or the end; settle "
+            "time: from when its trailing 300 s average stays within 10 % of <i>after</i>."
+            "</p>")
+    body += _summary_table(groups)
+    body += "<details><summary>every run</summary>"
+    body += H.table(header, rows, text_cols=(0, 1, 3, 4)) + "</details>"
     files = []
     for k, ((mp, n_r, comm, sched), members) in enumerate(sorted(groups.items(),
                                                                   key=lambda kv: str(kv[0]))):
