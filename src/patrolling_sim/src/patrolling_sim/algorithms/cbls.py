@@ -160,3 +160,7 @@ class ConcurrentBayesianLearning(PatrolStrategy):
                 and self.ctx.team_size > 1:
             self._record_visit(data[2], now)
             self.intention[data[0]] = data[3]
+
+    def on_teammate_silent(self, robot_id, now):
+        """A silent teammate no longer takes its announced vertex out of the candidates."""
+        self.intention.pop(robot_id, None)

@@ -18,6 +18,12 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     gwait        goal_reached_wait, s >= 0                           (0)
     comm_delay   communication_delay, s >= 0                         (0)
     loss         lost_message_rate in [0, 1)                         (0)
+    comm         communication model of inter-robot messages (patrolling_sim.comm):
+                 perfect | bernoulli:p=.. | ge:p_good=..,p_bad=..,to_bad=..,to_good=.. |
+                 range:r=..,los=true|false, optionally ;delay=KIND:a[,b]      (perfect)
+    attrition    robot failures (patrolling_sim.attrition): none | "2@600,5@1200[+300]" |
+                 random:rate=..,min_team=..[,repair=..] (seeded by seed)       (none)
+                 see docs/scenarios.md
     timeout      sim seconds after GO; 0 = no timeout                (0)
     cycles       stop after k complete patrol cycles; 0 = no limit   (0)
     speedup      simulator pace (> 0): 1 = real time, 4 = four times faster   (1); an upper
@@ -45,6 +51,7 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
 """
 import dataclasses
 import logging
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -97,6 +104,8 @@ class ExperimentConfig:
     gwait: float = 0.0
     comm_delay: float = 0.0
     loss: float = 0.0
+    comm: str = "perfect"
+    attrition: str = "none"
     timeout: float = 0.0
     cycles: int = 0
     speedup: float = 1.0
@@ -182,6 +191,7 @@ class ExperimentConfig:
                 f"pace the agents and the navigation can follow, e.g. 4; see the README)")
         if not 0 <= self.loss < 1:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
+        self.scenario()                     # one-line errors for --comm / --attrition
         if self.cycles < 0:
             raise PatrolInputError(f"argument --cycles: must be >= 0, got {self.cycles}")
         if self.record and self.record_period <= 0:
@@ -206,6 +216,19 @@ class ExperimentConfig:
                 env = None
             validation.check_ros_navigation(self.loc, env)
         return self
+
+    def scenario(self):
+        """(communication model, failure schedule) of this run, from ``comm`` and
+        ``attrition`` (the random attrition model is drawn from ``seed`` over ``timeout``).
+
+        Raises PatrolInputError (one line naming --comm or --attrition)."""
+        from ..scenario import check_scenario
+        self.comm = str(self.comm or "perfect").strip() or "perfect"
+        self.attrition = str(self.attrition or "none").strip() or "none"
+        return check_scenario(self.comm, self.attrition, self.robots or 0,
+                              duration=self.timeout if self.timeout > 0 else math.inf,
+                              seed=self.seed, what_comm="argument --comm",
+                              what_attr="argument --attrition")
 
     def start_positions(self):
         """[(x, y)] for the team (table entry or computed); validates the team size."""

@@ -5,7 +5,10 @@ the results folder (``<prefix>_experiment.launch``) so that the run can be repro
 plain ``roslaunch``. The file composes:
 
 - global parameters (``/use_sim_time``, ``/goal_reached_wait``, ``/communication_delay``,
-  ``/lost_message_rate``, ``/navigation_module``, ``/initial_positions``, ``/initial_pos``),
+  ``/lost_message_rate``, ``/navigation_module``, ``/initial_positions``, ``/initial_pos``,
+  and the scenario: ``/comm_model`` (communication model spec), ``/attrition`` (the explicit
+  failure schedule ``ROBOT@T[+REPAIR],...``, the random model already drawn from the seed),
+  ``/scenario_seed``; docs/scenarios.md),
 - the simulator (``patrol_stage2d/launch/stage2d.launch``),
 - one map server (``spqrel_nav_lite`` map_server publishing ``/map``),
 - per robot ``launch/robot.launch`` (localisation + navigation in namespace ``robot_i``; with
@@ -46,6 +49,10 @@ def _abstract_world(a, cfg, n):
       'required="true" output="log">')
     a(f'    <param name="team_size" value="{n}"/>')
     a(f'    <param name="speedup" value="{_num(cfg.speedup)}"/>')
+    if cfg.scenario()[0].name == "range":
+        # the range model judges links from the robots' poses on /positions, which the
+        # agents publish from move_base feedback
+        a('    <param name="feedback" value="true"/>')
     a("  </node>")
     a("")
 
@@ -88,6 +95,18 @@ def graph_drawing(graph_path):
     return xy, " ".join(f"{u} {w}" for u, w in edges)
 
 
+def scenario_params(cfg):
+    """The scenario's global ROS parameters: ``/comm_model`` (the model's canonical spec),
+    ``/attrition`` (explicit schedule, so every node fails the same robots at the same
+    times), ``/scenario_seed``."""
+    model, schedule = cfg.scenario()
+    # repr: the times round-trip exactly (a drawn random time has more digits than %g keeps)
+    explicit = ",".join(f"{f.robot}@{f.t!r}" + (f"+{f.repair!r}" if f.repair is not None
+                                                  else "") for f in schedule) or "none"
+    return {"/comm_model": model.describe(), "/attrition": explicit,
+            "/scenario_seed": int(cfg.seed)}
+
+
 def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi / 2,
                     rviz_config=None):
     """Return the launch XML (str) for ``cfg`` with robots at ``positions`` [(x, y)].
@@ -117,6 +136,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'  <param name="/communication_delay" value="{_num(cfg.comm_delay)}"/>')
     a(f'  <param name="/lost_message_rate" value="{_num(cfg.loss)}"/>')
     a(f'  <param name="/navigation_module" value={_attr(cfg.nav)}/>')
+    for name, value in scenario_params(cfg).items():
+        kind = "str" if isinstance(value, str) else "int"
+        a(f'  <param name="{name}" type="{kind}" value={_attr(value)}/>')
     a(f'  <param name="/localization_module" value={_attr(cfg.loc)}/>')
     a(f'  <param name="/initial_positions" value={_attr(cfg.initpos)}/>')
     a(f'  <rosparam param="/initial_pos">[{flat}]</rosparam>')
@@ -170,6 +192,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'    <param name="cycles" value="{int(cfg.cycles)}"/>')
     a(f'    <param name="dead_robot_timeout" value="{_num(cfg.dead_robot_timeout)}"/>')
     a(f'    <param name="map_label" value={_attr(cfg.result_name)}/>')
+    a(f'    <param name="attrition_spec" type="str" value={_attr(cfg.attrition)}/>')
     a("  </node>")
     if agents == "shared":
         # every agent in one process: the same PatrolAgent objects and topics, but each
