@@ -1,0 +1,129 @@
+"""Client side of a campaign: the campaign folder (result files, per-run state records,
+``runs.csv``). Only the client writes files. Part of :mod:`patrolling_sim.campaign`."""
+import json
+import os
+from typing import Dict, Optional
+
+import yaml
+
+from .campaign_spec import (DONE_STATUSES, FAILED_STATUSES, RESULTS_DIR, STATE_DIR, Campaign,
+                            _Dumper, _Loader,
+                            RunSpec)
+
+def _write_atomic(path, text):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    tmp = path + ".part"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def load_state(out: str) -> Dict[str, dict]:
+    d = os.path.join(out, STATE_DIR)
+    state = {}
+    if os.path.isdir(d):
+        for fn in sorted(os.listdir(d)):
+            if fn.endswith(".yaml"):
+                with open(os.path.join(d, fn)) as f:
+                    rec = yaml.load(f, Loader=_Loader) or {}
+                if "key" in rec:
+                    state[rec["key"]] = rec
+    return state
+
+
+def needs_run(record: Optional[dict], retry_failed: bool) -> bool:
+    if record is None:
+        return True
+    st = record.get("status")
+    if st in DONE_STATUSES:
+        return False
+    if st in FAILED_STATUSES:
+        return retry_failed
+    return True                                # interrupted, aborted, unknown: redo
+
+
+def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign) -> dict:
+    """Write a finished run's files (as received from the worker, its metrics file included)
+    into the campaign tree and its state record (last, so a record always points at complete
+    files). Returns the record."""
+    files = result.get("files") or {}
+    prefix = result.get("prefix")
+    dest_prefix = None
+    metrics = dict(result.get("metrics") or {}) if prefix else {}
+    if prefix:
+        base = os.path.join(out, RESULTS_DIR)
+        rel = prefix
+        # a stamp may repeat across runs (same second): keep every run's files apart
+        k = 0
+        while any(os.path.exists(os.path.join(base, (rel if k == 0 else f"{prefix}_{k}") + s))
+                  for s in ("_info.csv", "_idleness.csv")):
+            k += 1
+        if k:
+            rel = f"{prefix}_{k}"
+        for p, text in files.items():
+            target = rel + p[len(prefix):] if p.startswith(prefix) else p
+            _write_atomic(os.path.join(base, target), text)
+        dest_prefix = os.path.join(RESULTS_DIR, rel)
+    record = {"key": spec.key, "mode": spec.mode, "config": spec.config,
+              "status": result.get("status") or "CRASHED", "rc": result.get("rc"),
+              "prefix": dest_prefix, "wall": round(float(result.get("wall") or 0.0), 3),
+              "cpu_s": round(float(result.get("cpu_s") or 0.0), 3),
+              "code": campaign.code, "provenance": result.get("provenance"),
+              "metrics": metrics}
+    if result.get("error"):
+        record["error"] = result["error"]
+    if result.get("log_tail") and record["status"] not in DONE_STATUSES:
+        record["log_tail"] = result["log_tail"]
+    _write_atomic(os.path.join(out, STATE_DIR, spec.key + ".yaml"),
+                  yaml.dump(record, Dumper=_Dumper, sort_keys=False))
+    return record
+
+
+def extra_row_columns(spec: RunSpec, record: Optional[dict]) -> dict:
+    """Merge hook: further columns of a run's ``runs.csv`` row derived from its configuration
+    (e.g. the scenario's columns). None yet."""
+    return {}
+
+
+def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
+    """``runs.csv``: one row per run of the campaign (config columns, status, metrics)."""
+    import pandas as pd
+    rows = []
+    for spec in campaign.runs:
+        rec = state.get(spec.key)
+        row = {"key": spec.key, "mode": spec.mode}
+        row.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else v)
+                    for k, v in spec.config.items()})
+        row["status"] = rec["status"] if rec else "NOT_RUN"
+        if rec:
+            row["prefix"] = rec.get("prefix")
+            row["wall_s"] = rec.get("wall")
+            row["cpu_s"] = rec.get("cpu_s")
+            row.update(rec.get("metrics") or {})
+        row.update(extra_row_columns(spec, rec))
+        rows.append(row)
+    path = os.path.join(out, "runs.csv")
+    df = pd.DataFrame(rows)
+    tmp = path + ".part"
+    df.to_csv(tmp, index=False)
+    os.replace(tmp, path)
+    return path
+
+
+def summary_table(out: str) -> str:
+    """Text table of runs.csv grouped by map, team size and algorithm."""
+    import pandas as pd
+    df = pd.read_csv(os.path.join(out, "runs.csv"))
+    ok = df[df["status"].isin(DONE_STATUSES[:2])]
+    lines = []
+    if len(ok):
+        g = ok.groupby(["map", "robots", "alg"])
+        t = g.agg(runs=("key", "count"), avg_idleness=("idl_avg", "mean"),
+                  max_idleness=("idl_max", "mean"), visits=("total_visits", "mean"))
+        if "time_avg_idleness" in ok:
+            t["time_avg_idleness"] = g["time_avg_idleness"].mean()
+        lines.append(t.round(2).to_string())
+    counts = df["status"].value_counts().to_dict()
+    lines.append("status: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    return "\n".join(lines)
+

@@ -1,0 +1,175 @@
+"""Worker side of a campaign: one run (or a chunk of graph-mode runs) executed in a Dask worker
+process, returning everything in memory (file contents, the metrics row, provenance). Part of
+:mod:`patrolling_sim.campaign`."""
+import datetime
+import os
+import platform
+import resource
+import socket
+import subprocess
+import tempfile
+import time
+from typing import Dict, List
+
+import yaml
+
+def _read_tree(root: str) -> Dict[str, str]:
+    out = {}
+    for d, _, files in os.walk(root):
+        for fn in files:
+            p = os.path.join(d, fn)
+            try:
+                with open(p) as f:
+                    out[os.path.relpath(p, root)] = f.read()
+            except (UnicodeDecodeError, OSError):
+                continue                       # binary (snapshots) or vanished: not sent back
+    return out
+
+
+def _provenance(t0, t1):
+    return {"host": socket.gethostname(), "python": platform.python_version(),
+            "start": t0.isoformat(timespec="seconds"), "end": t1.isoformat(timespec="seconds")}
+
+
+def _tmp_root():
+    """A memory-backed folder for the runs' scratch files when the machine has one (the files
+    are read back at once and deleted), else the default temporary folder."""
+    shm = "/dev/shm"
+    return shm if os.path.isdir(shm) and os.access(shm, os.W_OK) else None
+
+
+def _summary_from_info(text):
+    """The original's metrics of an info.csv line (empty idleness fields: None), {} if the
+    line is malformed."""
+    from .results import parse_info_line
+    try:
+        row = parse_info_line(text)
+    except ValueError:
+        return {}
+    return {k: (None if row[k] is None else float(row[k]))
+            for k in ("idl_min", "idl_avg", "idl_stddev", "idl_max", "interferences",
+                      "total_visits", "complete_cycles", "sim_duration", "interference_rate")}
+
+
+def run_metrics(files: Dict[str, str], prefix: str, map_name: str, visits_path: str) -> dict:
+    """The run's row of metrics (the original's from info.csv, the extra ones of
+    :mod:`patrolling_sim.metrics` from the visit log at ``visits_path``); adds
+    ``<prefix>_metrics.yaml`` to ``files``. Computed where the run ran, so the client only
+    writes what it receives."""
+    from . import paths
+    from .campaign_spec import _Dumper
+    from .metrics import compute_metrics, metrics_to_yaml_dict, read_visits
+    row = _summary_from_info(files.get(prefix + "_info.csv", ""))
+    if os.path.isfile(visits_path) and row.get("sim_duration"):
+        m = compute_metrics(read_visits(visits_path), paths.vertex_count(map_name),
+                            row["sim_duration"])
+        md = metrics_to_yaml_dict(m)
+        files[prefix + "_metrics.yaml"] = yaml.dump(md, Dumper=_Dumper, sort_keys=False)
+        for k in ("time_avg_idleness", "worst_idleness", "time_avg_max_idleness",
+                  "visit_frequency_mean", "visit_frequency_sd", "never_visited"):
+            row[k] = md[k]
+        for k, v in md["idleness_percentiles"].items():
+            row[f"idl_{k}"] = v
+    return row
+
+
+def run_graph_task(config: dict) -> dict:
+    """Worker side of a graph-mode run: simulate in a private scratch folder and return every
+    file written (relative path -> text), the visit log included, the run's metrics row, its
+    CPU time and provenance. Runs in a Dask worker process, which keeps its imports between
+    runs."""
+    from .graph_sim import GraphSimConfig, GraphSimulator
+    t0 = datetime.datetime.now(datetime.timezone.utc)
+    wall = time.monotonic()
+    cpu = time.thread_time()
+    with tempfile.TemporaryDirectory(prefix="campaign_", dir=_tmp_root()) as tmp:
+        sim = GraphSimulator(GraphSimConfig(**dict(config, results_dir=tmp)))
+        sim.run(write=True)                    # the writer keeps the visit log too
+        prefix = os.path.relpath(sim.prefix, tmp)
+        files = _read_tree(tmp)
+        metrics = run_metrics(files, prefix, config["map"], sim.prefix + "_visits.csv")
+    t1 = datetime.datetime.now(datetime.timezone.utc)
+    return {"prefix": prefix, "files": files, "status": sim.termination, "rc": 0,
+            "metrics": metrics, "cpu_s": time.thread_time() - cpu,
+            "wall": time.monotonic() - wall, "provenance": _provenance(t0, t1)}
+
+
+def run_graph_chunk(configs: List[dict]) -> List[dict]:
+    """Several graph-mode runs in one Dask task (the engine's cost per task is paid once per
+    chunk); a run that raises gives an ERROR result, the others are kept."""
+    out = []
+    for c in configs:
+        try:
+            out.append(run_graph_task(c))
+        except Exception as e:                 # recorded per run, like a failed task
+            out.append({"status": "ERROR", "error": f"{type(e).__name__}: {e}"})
+    return out
+
+
+def chunks(n_runs: int, n_workers: int, max_size: int = 20, per_worker: int = 8) -> List[int]:
+    """Sizes of the chunks ``n_runs`` runs are cut into: at most ``max_size`` runs each and at
+    least ``per_worker`` chunks per worker when there are enough runs (so the workers stay
+    busy to the end and an interruption loses little), as even as possible."""
+    if n_runs <= 0:
+        return []
+    k = max(-(-n_runs // max_size), min(n_runs, per_worker * max(1, n_workers)))
+    q, r = divmod(n_runs, k)
+    return [q + 1] * r + [q] * (k - r)
+
+
+def run_ros_task(config: dict, root: str) -> dict:
+    """Worker side of a ROS-mode run: the runner (its own ROS master) in a private temporary
+    results folder; returns every text file it wrote and its exit code."""
+    t0 = datetime.datetime.now(datetime.timezone.utc)
+    wall = time.monotonic()
+    cpu = _children_cpu()
+    with tempfile.TemporaryDirectory(prefix="campaign_ros_") as tmp:
+        cfg_path = os.path.join(tmp, "run.yaml")
+        res = os.path.join(tmp, "results")
+        with open(cfg_path, "w") as f:
+            yaml.safe_dump(dict(config, results_dir=res), f)
+        env = dict(os.environ, PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
+        proc = subprocess.run(["/usr/bin/python3", os.path.join(root, "scripts",
+                                                                "start_experiments.py"),
+                               "--headless", "--config", cfg_path],
+                              env=env, capture_output=True, text=True,
+                              stdin=subprocess.DEVNULL)
+        files = _read_tree(res) if os.path.isdir(res) else {}
+        infos = [p for p in files if p.endswith("_info.csv")]
+        prefix = infos[0][:-len("_info.csv")] if infos else None
+        status, metrics = None, {}
+        if prefix:
+            status = _status_from_files(files, prefix)
+            metrics = run_metrics(files, prefix, config["map"],
+                                  os.path.join(res, prefix + "_visits.csv"))
+    if status is None:
+        status = "CRASHED"
+    t1 = datetime.datetime.now(datetime.timezone.utc)
+    return {"prefix": prefix, "files": files, "status": status, "rc": proc.returncode,
+            "metrics": metrics, "cpu_s": _children_cpu() - cpu, "wall": time.monotonic() - wall,
+            "provenance": _provenance(t0, t1),
+            "log_tail": (proc.stdout + proc.stderr)[-2000:]}
+
+
+def _children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _status_from_files(files, prefix):
+    """Run status: ``<prefix>_run.yaml``'s ``status`` if the runner wrote one, else the
+    termination field of info.csv."""
+    run_yaml = files.get(prefix + "_run.yaml")
+    if run_yaml:
+        try:
+            st = (yaml.safe_load(run_yaml) or {}).get("status")
+            if st:
+                return str(st)
+        except yaml.YAMLError:
+            pass
+    info = files.get(prefix + "_info.csv", "").strip().split(";")
+    from .results import INFO_FIELDS
+    if len(info) == len(INFO_FIELDS):
+        return info[INFO_FIELDS.index("termination")]
+    return None
+
