@@ -1,23 +1,12 @@
 #!/usr/bin/python3
 """Graph-level patrolling experiments without ROS (see --help)."""
-import signal
-import sys
+import early_signal  # first: a signal during start-up ends the program at once, in one line
 
-
-def _early_signal(signum, frame):
-    # a signal while the modules load ends the program at once, in one line: nothing has
-    # been written yet; graph_sim.main installs its own handlers (which keep measured files)
-    sys.stderr.write(f"graph_sim.py: interrupted by {signal.Signals(signum).name} before the "
-                     "run started\n")
-    sys.stderr.flush()
-    import os
-    os._exit(143 if signum == signal.SIGTERM else 130)
-
-
-signal.signal(signal.SIGINT, _early_signal)
-signal.signal(signal.SIGTERM, _early_signal)
+early_signal.install("graph_sim.py")
 
 import os  # noqa: E402
+import signal  # noqa: E402
+import sys  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src",
                                 "patrolling_sim", "src"))

@@ -7,7 +7,8 @@ import time
 from . import paths, run_status, validation
 from .algorithms import REGISTRY
 from .graph_config import TRAVEL_MODES, GraphSimConfig
-from .graph_sim import GraphSimulator, claim_prefix
+from .graph_sim import GraphSimulator
+from .results import claim_prefix
 from .results import default_prefix
 
 

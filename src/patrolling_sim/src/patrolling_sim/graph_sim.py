@@ -41,7 +41,8 @@ from .graph_config import (FEEDBACK_PERIOD, MIN_TRIP, TIMERESULTS_PERIOD,  # noq
 from .graph_motion import _Robot
 from .graph import PatrolGraph
 from .monitor_core import MonitorCore, Stats
-from .results import ResultWriter, RunInfo, default_prefix, hostname, timestamp
+from .results import (ResultWriter, RunInfo, claim_prefix, default_prefix,  # noqa: F401
+                      hostname, timestamp)
 
 class GraphSimulator:
     """One run. Use :meth:`run`; see the module docstring for the model."""
@@ -362,20 +363,6 @@ class GraphSimulator:
                     "sim_time": round(self.t, 1),
                     "wall_time": round(time.monotonic() - self.wall0, 1),
                     "exit_code": run_status.exit_code_for(status), "written_by": "graph_sim"})
-
-
-def claim_prefix(prefix: str) -> str:
-    """``prefix`` or ``prefix_k``: the first whose idleness file can be created exclusively
-    (safe when several runs start in the same second)."""
-    os.makedirs(os.path.dirname(prefix) or ".", exist_ok=True)
-    for k in range(1000):
-        p = prefix if k == 0 else f"{prefix}_{k}"
-        try:
-            os.close(os.open(p + "_idleness.csv", os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
-            return p
-        except FileExistsError:
-            continue
-    raise PatrolInputError(f"argument --results-dir: cannot create a unique run prefix for {prefix}")
 
 
 def run_graph_experiment(cfg: GraphSimConfig, write=True, log=None):
