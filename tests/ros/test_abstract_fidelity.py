@@ -29,9 +29,11 @@ GRAPH_TOLERANCE = 0.05
 #: single 600 s run varies widely from run to run: CR 97-160 s in graph mode (seeds 0-11)
 #: against the original's mean of 132.9 s; DTAP 80-151 s in graph mode (seeds 0-29, mean
 #: 103.9 s) and 86-187 s in ROS mode (ROS runs are not repeatable: message timing) against
-#: the original's 98 s. So both are averaged (DTAP over 6 runs); the other algorithms'
-#: figures vary by a few percent.
-RUNS = {"CR": 2, "DTAP": 6}
+#: the original's 98 s; DTAG 103-137 s in graph mode (seeds 0-9, mean 122 s) against the
+#: original's 134.2 s, so that one run at 103 s misses the 25 % bound (100.6 s). So these
+#: are averaged (DTAG over 3 runs, DTAP over 6); the other algorithms' figures vary by a few
+#: percent (SEBS's maximum 63-80 s in graph mode against 78.8 s, CGG's 142-143 s).
+RUNS = {"CR": 2, "DTAG": 3, "DTAP": 6}
 PARALLEL = 2
 #: (algorithm, figure) -> (tolerance, reason): a known difference from the original in ROS
 #: mode (docs/fidelity.md, "DTAP's maximum in ROS mode"), checked against its own, wider
