@@ -6,7 +6,9 @@ move_base action with its own agent as client, clear_costmaps, parameters, map -
 frames); at the end every vertex must have been visited, with files valid and nothing left
 running. The algorithm is CR: with CGG from the default start poses of 16 robots on grid,
 vertex 0 stays unvisited for minutes in every layout (robot_nav per robot too), so CGG
-could not show "every vertex visited" in a short run."""
+could not show "every vertex visited" in a short run. 240 sim s at x6: in 120 s at x10 on a
+loaded 2-core machine (pace 4-5x reached) 16 robots crowding 25 vertices once left a vertex
+unvisited (CI, 2026-11-25)."""
 import os
 import re
 import subprocess
@@ -20,7 +22,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 def test_sixteen_robots_pooled_navigation_one_agent_per_process(tmp_path):
     p = start(["--map", "grid", "--robots", "16", "--alg", "CR", "--loc", "fake_localization",
-               "--timeout", "120", "--speedup", "10", "--processes", "pooled-separate:2"],
+               "--timeout", "240", "--speedup", "6", "--processes", "pooled-separate:2"],
               tmp_path, stdin=subprocess.DEVNULL)
     lines, check = [], {}
 
@@ -50,4 +52,4 @@ def test_sixteen_robots_pooled_navigation_one_agent_per_process(tmp_path):
     launch = open(prefix + "_experiment.launch").read()
     assert launch.count('type="patrol_agent"') == 16 and launch.count('type="nav_host"') == 2
     info = check_complete_run(prefix, out, 25, 16, "CR")
-    assert 119.0 <= info["sim_duration"] <= 130.0
+    assert 239.0 <= info["sim_duration"] <= 250.0
