@@ -108,7 +108,7 @@ def make_launch(args, alg, n, results_dir):
          f'  <param name="/goal_reached_wait" value="{args.gwait}"/>',
          '  <param name="/communication_delay" value="0.0"/>',
          f"  <rosparam param=\"/initial_pos\">[{flat}]</rosparam>",
-         '  <node pkg="patrolling_sim" type="fake_move_base" name="fake_move_base">',
+         '  <node pkg="patrolling_sim" type="fake_move_base.py" name="fake_move_base">',
          f'    <param name="speed" value="{args.speed}"/> <param name="rate" value="10"/>',
          "  </node>",
          f'  <node pkg="patrolling_sim" type="monitor" name="monitor" required="true" '

@@ -7,6 +7,8 @@ Prints a Markdown table: per algorithm the original's mean avg / max / visits, o
 over ``--runs`` runs, seeds 0..runs-1) and the differences in %, plus the agents' mean
 turnaround (sim s from a SUCCEEDED to the next goal, docs/abstract_world.md). Every run must
 end on TIMEOUT after the full duration; a run that does not is reported, not averaged.
+Algorithms without reference runs (this project's own, e.g. CGG_TSP, MSP_BAL) are measured
+the same way, with "(ours only)" in the original's column.
 
 Usage:
     bench/fidelity_ros.py [--algs CR CGG ...] [--runs 1] [--speedup 30]
@@ -49,7 +51,8 @@ def main():
     print("|---|---|---|---|---|")
     raw = {}
     for alg in algs:
-        ref = mean_figures(fc.reference_figures(alg))
+        ref = mean_figures(fc.reference_figures(alg)) \
+            if alg in fc.reference_algorithms() else None
         ok, notes = [], []
         for seed in range(a.runs):
             with tempfile.TemporaryDirectory(prefix=f"fidelity_ros_{alg}_") as d:
@@ -63,17 +66,18 @@ def main():
                              f"{r.info['termination'] if r.info else 'no info.csv'}")
         raw[alg] = dict(original=ref, ours=[dict(figures=r.figures(), turnaround=r.turnaround)
                                             for r in ok], failed=notes)
+        ref_s = f"{ref[0]:.1f} / {ref[1]:.1f} / {ref[2]:.0f}" if ref else "(ours only)"
         if not ok:
-            print(f"| {alg} | {ref[0]:.1f} / {ref[1]:.1f} / {ref[2]:.0f} | no complete run "
-                  f"({'; '.join(notes)}) | | |", flush=True)
+            print(f"| {alg} | {ref_s} | no complete run ({'; '.join(notes)}) | | |",
+                  flush=True)
             continue
         ours = mean_figures([r.figures() for r in ok])
         turn = [r.turnaround for r in ok if r.turnaround is not None]
         turn_s = f"{sum(turn) / len(turn):.3f}" if turn else "-"
-        print(f"| {alg} | {ref[0]:.1f} / {ref[1]:.1f} / {ref[2]:.0f} | "
-              f"{ours[0]:.1f} / {ours[1]:.1f} / {ours[2]:.0f} | "
-              f"{pct(ours[0], ref[0])} / {pct(ours[1], ref[1])} / {pct(ours[2], ref[2])} | "
-              f"{turn_s} |" + (f" ({'; '.join(notes)})" if notes else ""),
+        diff_s = (f"{pct(ours[0], ref[0])} / {pct(ours[1], ref[1])} / {pct(ours[2], ref[2])}"
+                  if ref else "-")
+        print(f"| {alg} | {ref_s} | {ours[0]:.1f} / {ours[1]:.1f} / {ours[2]:.0f} | "
+              f"{diff_s} | {turn_s} |" + (f" ({'; '.join(notes)})" if notes else ""),
               flush=True)
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:

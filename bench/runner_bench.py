@@ -10,7 +10,11 @@ process tree from /proc once per second:
 - sustained RTF: (sim time at end - sim time at GO) / (wall time at end - wall time at GO),
   from the simulator's own log lines (each carries its wall and sim stamps), after GO;
 - CPU: mean total CPU of the tree over the run after GO, in % of one core;
-- memory: peak total PSS (proportional set size) of the tree, MB;
+- memory: peak total PSS (proportional set size) of the tree, MB, and the peak PSS of the
+  navigation processes (robot_nav, amcl, fake_localization, move_base or nav_host) per robot;
+- CPU-seconds per simulated second, whole tree and navigation processes only (CPU time
+  after GO over the sim time it
+  advanced): unlike the pace, it does not depend on what else loads the machine;
 - patrol quality, from the run's info.csv: visits per robot per simulated minute, average
   idleness, interferences, and the simulator's robot-robot contacts. A pace the navigation
   cannot follow shows up here first (fewer visits, more interferences), so compare these
@@ -18,7 +22,8 @@ process tree from /proc once per second:
 
 Usage:
     bench/runner_bench.py [--robots 4 8 12] [--loc fake_localization AMCL] [--timeout 300]
-                          [--speedup 4] [--processes shared] [--out docs/benchmarks/runner.md]
+                          [--speedup 4] [--processes shared|separate|pooled[:K]|
+                          pooled-separate[:K]] [--map grid] [--out docs/benchmarks/runner.md]
 """
 import argparse
 import glob
@@ -41,9 +46,22 @@ SIM_LOG = re.compile(r"\[ INFO\] \[([\d.]+), ([\d.]+)\]: stage2d: sim time .*con
                      r"(\d+) robot (\d+)(?:, stale commands ([\d.]+)%)?")
 
 
-def sim_log(results_dir, robots, alg):
+NAV_NODES = ("nav_host", "robot_nav", "/move_base", "/amcl", "/fake_localization")
+
+
+def is_nav(pid):
+    """True if the process is one of our navigation nodes (from its command line)."""
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv = f.read().split(b"\0")
+    except OSError:
+        return False
+    return any(a.decode(errors="replace").endswith(NAV_NODES) for a in argv[:3])
+
+
+def sim_log(results_dir, robots, alg, map_name="grid"):
     """[(wall, sim, wall contacts, robot contacts)] from the newest run's simulator log."""
-    logs = sorted(glob.glob(os.path.join(results_dir, f"grid_{robots}", alg, "*", "*_logs",
+    logs = sorted(glob.glob(os.path.join(results_dir, f"{map_name}_{robots}", alg, "*", "*_logs",
                                          "roslaunch.log")), key=os.path.getmtime)
     out = []
     if logs:
@@ -56,9 +74,9 @@ def sim_log(results_dir, robots, alg):
     return out
 
 
-def run_one(robots, loc, timeout, speedup, alg, results_dir, processes):
+def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name="grid"):
     cmd = [sys.executable, os.path.join(ROOT, "scripts", "start_experiments.py"), "--headless",
-           "--map", "grid", "--robots", str(robots), "--alg", alg, "--loc", loc,
+           "--map", map_name, "--force", "--robots", str(robots), "--alg", alg, "--loc", loc,
            "--timeout", str(timeout), "--speedup", str(speedup), "--results-dir", results_dir,
            "--processes", processes]
     wall_start = time.time()
@@ -66,9 +84,11 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes):
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                          start_new_session=True)
     tree = ProcessTree(p.pid)
-    samples = []            # (wall, cumulative cpu ticks of the tree, pss kb)
+    samples = []            # (wall, cumulative cpu ticks of the tree, pss kb, nav pss kb)
     seen = {}               # pid -> last cpu ticks (per-process deltas: exits don't subtract)
     cum = 0
+    cum_nav = 0
+    nav_pids = {}            # pid -> is a navigation process
     state = {"go_wall": None, "go_sim": None, "last": None, "lines": []}
 
     def reader():
@@ -94,8 +114,12 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes):
             if t is None:                   # exited since the listing
                 continue
             cum += max(0, t - seen.get(x, 0))
+            if nav_pids.setdefault(x, is_nav(x)):
+                cum_nav += max(0, t - seen.get(x, 0))
             seen[x] = t
-        samples.append((time.monotonic() - t0, cum, sum(pss_kb(x) for x in pids)))
+        pss = {x: pss_kb(x) for x in pids}
+        samples.append((time.monotonic() - t0, cum, sum(pss.values()),
+                        sum(v for x, v in pss.items() if nav_pids.get(x)), cum_nav))
         time.sleep(1.0)
     th.join(timeout=5)
     res = {"robots": robots, "loc": loc, "exit": p.returncode, "go": state.get("go_reported"),
@@ -103,20 +127,26 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes):
     if state["go_wall"] is not None:
         after = [s for s in samples if s[0] >= state["go_wall"]]
         if len(after) >= 2:
-            res["cpu"] = 100.0 * (after[-1][1] - after[0][1]) / CLK / (after[-1][0] - after[0][0])
+            span = after[-1][0] - after[0][0]
+            res["cpu"] = 100.0 * (after[-1][1] - after[0][1]) / CLK / span
+            res["nav_cpu"] = 100.0 * (after[-1][4] - after[0][4]) / CLK / span
         # RTF from the simulator's own stamped log lines after GO (+ a few s of settling)
         go_abs = wall_start + state["go_wall"] + 3.0
-        pts = [x for x in sim_log(results_dir, robots, alg) if x[0] >= go_abs]
+        pts = [x for x in sim_log(results_dir, robots, alg, map_name) if x[0] >= go_abs]
         if len(pts) >= 2:
             res["rtf"] = (pts[-1][1] - pts[0][1]) / (pts[-1][0] - pts[0][0])
+            if "cpu" in res:       # CPU-seconds per simulated second
+                res["cpu_per_sim_s"] = res["cpu"] / 100.0 / res["rtf"]
+                res["nav_cpu_per_sim_s"] = res["nav_cpu"] / 100.0 / res["rtf"]
             res["contacts"] = pts[-1][3]
             res["stale"] = pts[-1][4]
     res["pss_mb"] = max((s[2] for s in samples), default=0) / 1024.0
+    res["nav_pss_mb"] = max((s[3] for s in samples), default=0) / 1024.0 / robots
     res["tail"] = state["lines"][-3:]
     # patrol quality (from the run's info.csv): visits per robot per simulated minute,
     # average idleness and interferences; they degrade when the navigation cannot keep up
-    infos = sorted(glob.glob(os.path.join(results_dir, f"grid_{robots}", alg, "*", "*_info.csv")),
-                   key=os.path.getmtime)
+    infos = sorted(glob.glob(os.path.join(results_dir, f"{map_name}_{robots}", alg, "*",
+                                          "*_info.csv")), key=os.path.getmtime)
     if infos:
         f = open(infos[-1]).read().strip().split(";")
         sim_s, visits = float(f[10]), int(f[19])
@@ -133,7 +163,9 @@ def main():
     ap.add_argument("--loc", nargs="+", default=["fake_localization", "AMCL"])
     ap.add_argument("--timeout", type=float, default=300.0)
     ap.add_argument("--speedup", type=float, default=4.0)
-    ap.add_argument("--processes", default="shared", choices=["shared", "separate"])
+    ap.add_argument("--processes", default="shared",
+                    help="shared | separate | pooled[:K] | pooled-separate[:K]")
+    ap.add_argument("--map", default="grid")
     ap.add_argument("--alg", default="CGG")
     ap.add_argument("--out", help="append a markdown table to this file")
     args = ap.parse_args()
@@ -141,12 +173,16 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for loc in args.loc:
             for n in args.robots:
-                r = run_one(n, loc, args.timeout, args.speedup, args.alg, tmp, args.processes)
+                r = run_one(n, loc, args.timeout, args.speedup, args.alg, tmp, args.processes,
+                            args.map)
                 rows.append(r)
                 nan = float("nan")
                 print(f"{loc:18s} N={n:3d} exit={r['exit']} GO={r.get('go')} s "
                       f"RTF={r.get('rtf', nan):.2f} CPU={r.get('cpu', nan):.0f}% "
-                      f"PSS={r['pss_mb']:.0f} MB visits/robot/min={r.get('vpm', nan):.1f} "
+                      f"PSS={r['pss_mb']:.0f} MB nav PSS/robot={r['nav_pss_mb']:.0f} MB "
+                      f"CPU-s/sim-s={r.get('cpu_per_sim_s', nan):.3f} "
+                      f"(nav {r.get('nav_cpu_per_sim_s', nan):.3f}) "
+                      f"visits/robot/min={r.get('vpm', nan):.1f} "
                       f"avg idl={r.get('idl', nan):.1f} s interferences={r.get('interf')} "
                       f"contacts={r.get('contacts')} stale cmds={r.get('stale', nan):.1f}% "
                       f"load={r['load']:.1f}", flush=True)
@@ -156,16 +192,21 @@ def main():
         with open(args.out, "a") as f:
             f.write(f"\n{time.strftime('%Y-%m-%d %H:%M')} `bench/runner_bench.py --timeout "
                     f"{args.timeout:g} --speedup {args.speedup:g} --alg {args.alg} --processes "
-                    f"{args.processes}` on {os.uname().nodename} ({os.cpu_count()} cores)\n\n")
+                    f"{args.processes} --map {args.map}` on {os.uname().nodename} "
+                    f"({os.cpu_count()} cores)\n\n")
             f.write("| localisation | robots | exit | launch to GO (s) | sustained RTF | "
-                    "CPU (% of a core) | peak PSS (MB) | visits/robot/sim-min | avg idleness (s) "
+                    "CPU (% of a core) | CPU-s per sim-s (nav) | peak PSS (MB) | "
+                    "nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
                     "| interferences | robot contacts | stale commands (%) | load avg |\n")
-            f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+            f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
             nan = float("nan")
             for r in rows:
                 f.write(f"| {r['loc']} | {r['robots']} | {r['exit']} | {r.get('go')} | "
                         f"{r.get('rtf', nan):.2f} | {r.get('cpu', nan):.0f} | "
-                        f"{r['pss_mb']:.0f} | {r.get('vpm', nan):.1f} | {r.get('idl', nan):.1f} | "
+                        f"{r.get('cpu_per_sim_s', nan):.3f} ({r.get('nav_cpu_per_sim_s', nan):.3f})"
+                        f" | {r['pss_mb']:.0f} | "
+                        f"{r['nav_pss_mb']:.0f} | {r.get('vpm', nan):.1f} | "
+                        f"{r.get('idl', nan):.1f} | "
                         f"{r.get('interf')} | {r.get('contacts')} | {r.get('stale', nan):.1f} | "
                         f"{r['load']:.1f} |\n")
 

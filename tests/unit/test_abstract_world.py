@@ -114,3 +114,14 @@ def test_runner_launch_in_the_abstract_world(tmp_path):
     with pytest.raises(PatrolInputError, match="argument --nav: the abstract world has no "):
         ExperimentConfig(map="grid", robots=4, alg="CR", nav="abstract", record=True,
                          results_dir=str(tmp_path)).validate()
+
+
+def test_auction_trace_summary():
+    """The world's auction trace (PATROLLING_SIM_TRACE_AUCTIONS=1) summarises the delays
+    from a task request to the bids on it."""
+    import abstract_world
+    line = abstract_world.round_trip_summary([0.02, 0.04, 0.6, 1.2, 0.02])
+    assert line.startswith("auction bids traced: n 5,")
+    assert "median 0.040" in line and "max 1.200" in line
+    assert "over 0.5 s 2, over 1 s 1" in line
+    assert abstract_world.round_trip_summary([]) == "auction bids traced: none"

@@ -354,6 +354,29 @@ def test_cbls_running_mean_uses_the_table_as_last_refreshed():
     assert s.avg[2] == pytest.approx(5.0 / 1) and s.nvis[2] == 1
 
 
+def test_cbls_counts_intentions_only_below_its_local_team_size():
+    """The original's CBLS counts a teammate's intention only if the sender's id is below its
+    local TEAMSIZE: own id + 1, raised by the positions it has heard."""
+    d = FakeDriver()
+    d.team_pos = {}
+    s, _ = make("CBLS", STAR, rid=0, n=4, driver=d)
+    s.start(0, 0.0)
+    s.on_message([2, 32, 3, 1], 1.0)       # robot 2 heads to 1
+    assert s.team_size_heard() == 1 and s._taken() == set()
+    d.team_pos[1] = (0.0, 0.0)             # robot 1's position heard: TEAMSIZE 2
+    assert s.team_size_heard() == 2 and s._taken() == set()
+    d.team_pos[3] = (0.0, 0.0)             # robot 3's: TEAMSIZE 4, robot 2 now counts
+    assert s.team_size_heard() == 4 and s._taken() == {1}
+    d.team_pos.clear()                     # never lowered
+    assert s.team_size_heard() == 4
+    # robot 3 knows robots 0..3 from the start
+    s3, _ = make("CBLS", STAR, rid=3, n=4, driver=FakeDriver())
+    s3.driver.team_pos = {}
+    s3.start(0, 0.0)
+    s3.on_message([2, 32, 3, 1], 1.0)
+    assert s3._taken() == {1}
+
+
 def test_random_choices_are_seeded():
     a = [make("RAND", STAR, seed=3)[0] for _ in range(2)]
     seqs = []

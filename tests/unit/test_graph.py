@@ -131,3 +131,85 @@ def test_warnings_asymmetric_disconnected_occupied():
     occ = load_map(paths.map_files("grid")[0])
     G2 = parse_graph("1 344 344 0.075 0 0\n0 0 0 0\n", "o.graph")   # corner = wall
     assert any("occupied" in x for x in graph_warnings(G2, occ))
+
+
+def _settle_order_tables(g):
+    """Oracle for graph_tables' tie rule, written as a plain Dijkstra ordered by (cost,
+    vertex id) with strict improvement: (dist, next hop) of every pair."""
+    import heapq
+    import numpy as np
+    n = g.n
+    dist = np.full((n, n), np.inf)
+    nxt = np.full((n, n), -1, dtype=int)
+    for s in range(n):
+        d, pred, done, heap = dist[s], [-1] * n, [False] * n, [(0.0, s)]
+        d[s] = 0.0
+        while heap:
+            du, u = heapq.heappop(heap)
+            if done[u]:
+                continue
+            done[u] = True
+            for w, c in g.neighbors[u]:
+                if du + c < d[w]:
+                    d[w], pred[w] = du + c, u
+                    heapq.heappush(heap, (du + c, w))
+        for t in range(n):
+            u = t
+            while t != s and pred[t] != -1 and pred[u] != s:
+                u = pred[u]
+            nxt[s, t] = u if t != s and pred[t] != -1 else -1
+    return dist, nxt
+
+
+def _random_graph(rng, n, costs):
+    import networkx as nx
+    G = nx.MultiDiGraph(resolution=0.1)
+    for v in range(n):
+        G.add_node(v, pos=(0.0, 0.0), x_px=0, y_px=0)
+    for _ in range(rng.randint(0, 3 * n)):
+        u, w = rng.randrange(n), rng.randrange(n)
+        if u != w:
+            c = rng.choice(costs)
+            G.add_edge(u, w, cost_px=c)
+            if rng.random() < 0.8:
+                G.add_edge(w, u, cost_px=c)
+    return G
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_path_tables_follow_the_tie_rule_on_shipped_maps(name):
+    import networkx as nx
+    import numpy as np
+    g = PatrolGraph(load_graph(paths.map_files(name)[1], warn=False))
+    dist, nxt = _settle_order_tables(g)
+    assert np.array_equal(g.dist, dist)
+    assert np.array_equal(g._next, nxt)
+    hops = dict(nx.all_pairs_shortest_path_length(nx.DiGraph(g.G)))
+    assert all(g.hops[s, t] == hops[s].get(t, np.inf) for s in range(g.n) for t in range(g.n))
+    assert g.neighbor_ids(0) is g.neighbor_ids(0)          # precomputed, not rebuilt
+
+
+def test_path_tables_follow_the_tie_rule_with_many_ties():
+    import random
+    import numpy as np
+    rng = random.Random(3)
+    for trial in range(200):
+        g = PatrolGraph(_random_graph(rng, rng.randint(1, 25), [1, 2] if trial % 2 else
+                                      [1, 2, 3, 5, 10]))
+        dist, nxt = _settle_order_tables(g)
+        assert np.array_equal(g.dist, dist) and np.array_equal(g._next, nxt), trial
+
+
+def test_zero_cost_edges_give_valid_shortest_paths():
+    import random
+    rng = random.Random(5)
+    for _ in range(50):
+        g = PatrolGraph(_random_graph(rng, rng.randint(2, 12), [0, 0, 1, 2]))
+        for s in range(g.n):
+            for t in range(g.n):
+                p = g.path(s, t)
+                if g.dist[s, t] == float("inf"):
+                    assert p is None
+                else:
+                    assert p[0] == s and p[-1] == t
+                    assert sum(g.arc_cost(a, b) for a, b in zip(p, p[1:])) == g.dist[s, t]

@@ -36,9 +36,14 @@ turnaround, which costs patrol time in this world as in the reference runs).
 Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20),
 ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
 ~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.05 wall s; 0 = never hold).
+
+Diagnostic: with the environment variable ``PATROLLING_SIM_TRACE_AUCTIONS=1`` the node keeps
+reading ``/results`` after GO and logs at shutdown the sim time from each DTA task request
+(type 41) to every bid (type 42) it sees for that vertex (docs/abstract_world.md).
 """
 import json
 import math
+import os
 import statistics
 import sys
 import threading
@@ -53,6 +58,16 @@ STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5
 REACTION_TIME = 0.08
 #: wall s the clock waits at most per arrival (then the agent is taken to wait on purpose)
 REACTION_WAIT = 0.05
+
+
+def round_trip_summary(delays):
+    """One line on the request-to-bid delays (sim s) of the auctions traced."""
+    if not delays:
+        return "auction bids traced: none"
+    d = sorted(delays)
+    return (f"auction bids traced: n {len(d)}, request->bid sim s median {d[len(d) // 2]:.3f} "
+            f"p90 {d[int(0.9 * (len(d) - 1))]:.3f} max {d[-1]:.3f}, over 0.5 s "
+            f"{sum(x > 0.5 for x in d)}, over 1 s {sum(x > 1.0 for x in d)}")
 
 
 class RobotServer:
@@ -162,8 +177,10 @@ class WorldNode:
             self.tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=1)
             self.tf_msg = TFMessage()
             self._static_tf(TFMessage)
+        self.trace = [] if os.environ.get("PATROLLING_SIM_TRACE_AUCTIONS") == "1" else None
+        self.trace_req = {}                     # vertex -> sim time of its last task request
         self.results_sub = rospy.Subscriber("/results", Int16MultiArray, self._on_results,
-                                            queue_size=10)
+                                            queue_size=100)
         for r in self.robots:
             r.server.start()
             # the action server's own 5 Hz status timer is a thread woken by every clock
@@ -196,6 +213,11 @@ class WorldNode:
 
     def _on_results(self, msg):
         d = msg.data
+        if self.trace is not None and len(d) >= 4:
+            if d[1] == 41:                          # task request: [id, 41, v, bid]
+                self.trace_req[d[2]] = self.world.time
+            elif d[1] == 42 and d[2] in self.trace_req:
+                self.trace.append(self.world.time - self.trace_req[d[2]])
         if len(d) >= 3 and d[0] == -1 and d[1] == 10 and d[2] == 100 and self.go_at is None:
             self.go_at = self.world.time
             self.rospy.loginfo("abstract_world: GO at sim %.2f s", self.go_at)
@@ -247,7 +269,8 @@ class WorldNode:
             if self.world.steps % self.status_every == 0:
                 for r in self.robots:
                     r.server.publish_status()
-            if self.go_at is not None and self.results_sub is not None:
+            if (self.go_at is not None and self.results_sub is not None
+                    and self.trace is None):
                 self.results_sub.unregister()     # GO seen: no need to read every visit
                 self.results_sub = None
             pace = self.speedup if self.go_at is not None else self.speedup_before_go
@@ -321,6 +344,8 @@ class WorldNode:
                     preempted=[r.preempted for r in self.robots])
 
     def log_summary(self):
+        if self.trace is not None:
+            print("abstract_world: " + round_trip_summary(self.trace), flush=True)
         turn = [x for r in self.robots for x in r.turnaround]
         s = self.status(0.0)
         line = (f"abstract_world: end at sim {s['sim_time']:.2f} s, GO at {s['go_at']}; goals "

@@ -21,8 +21,9 @@ Not thread safe: a multi-threaded driver (rospy) calls it under one lock.
 import random
 from typing import Callable, Dict, List, Optional, Tuple
 
-from .algorithms.base import (MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED, Driver,
-                              PatrolStrategy, StrategyContext, create)
+from .agent_faults import ScenarioMixin, make_comm
+from .algorithms.base import (MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED,
+                              Driver, PatrolStrategy, StrategyContext, create)
 
 MONITOR_ID = -1
 GO = 100
@@ -36,7 +37,7 @@ INTERFERENCE_PAUSE = 3.0       # s stopped after a detection
 DECISION_RETRY = 0.5           # s between two questions to a strategy that has not decided
 MIN_COMM_DELAY = 0.001         # s: smaller communication delays are not applied
 #: message types that are never delayed nor lost (start-up, visit report, interference)
-IMMEDIATE_TYPES = (MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE)
+IMMEDIATE_TYPES = (MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE, MSG_FAILURE)
 #: first message type of the algorithms' own messages
 FIRST_ALGORITHM_TYPE = 30
 
@@ -81,7 +82,7 @@ class Effects:
         """An informational line about this robot. Default: nothing."""
 
 
-class PatrolAgentCore(Driver):
+class PatrolAgentCore(ScenarioMixin, Driver):
     """The life cycle of robot ``robot_id`` around a strategy. See the module docstring.
 
     Args:
@@ -93,11 +94,15 @@ class PatrolAgentCore(Driver):
             strategy's own generator, so that they never perturb decisions).
         goal_wait, comm_delay, loss: ``/goal_reached_wait``, ``/communication_delay``,
             ``/lost_message_rate``.
+        comm, positions, silence_check: the scenario (:mod:`patrolling_sim.agent_faults`):
+            the receiver's communication model (None: perfect), the true positions for the
+            range model, and whether silent teammates are reported to the strategy.
     """
 
     def __init__(self, effects: Effects, robot_id: int, start_vertex: int,
                  strategy_factory: Callable[[Driver], PatrolStrategy], seed: int = 0,
-                 goal_wait: float = 0.0, comm_delay: float = 0.0, loss: float = 0.0):
+                 goal_wait: float = 0.0, comm_delay: float = 0.0, loss: float = 0.0,
+                 comm=None, positions=None, silence_check: bool = False):
         self.fx = effects
         self.id = int(robot_id)
         self.start_vertex = int(start_vertex)
@@ -122,6 +127,7 @@ class PatrolAgentCore(Driver):
         self.interferences = 0
         self.messages_sent = 0
         self.messages_lost = 0
+        self._init_scenario(comm, positions, silence_check)
         self.strategy = strategy_factory(self)
 
     # -- Driver: what the strategy sees ----------------------------------------------------
@@ -131,6 +137,8 @@ class PatrolAgentCore(Driver):
     def send(self, data: List[int]) -> None:
         """Broadcast ``data`` on /results: types 10/11/12 at once; algorithm messages are
         lost with probability ``loss`` and published ``comm_delay`` s later."""
+        if self.failed:
+            return
         data = [int(x) for x in data]
         if len(data) > 1 and data[1] in IMMEDIATE_TYPES:
             self.fx.publish(data)
@@ -170,6 +178,9 @@ class PatrolAgentCore(Driver):
         """A message on /results (own messages are ignored here)."""
         if len(data) < 2 or data[0] == self.id:
             return
+        if self.failed and not (data[0] == MONITOR_ID and len(data) > 2 and data[2] == END):
+            self._counts["ignored_failed"] += 1
+            return
         if data[0] == MONITOR_ID and data[1] == MSG_INIT:
             if len(data) > 2 and data[2] == GO and self.phase in ("init", "ready"):
                 self.phase = "starting"
@@ -182,6 +193,12 @@ class PatrolAgentCore(Driver):
                 self.fx.end()
             return
         if data[1] >= FIRST_ALGORITHM_TYPE and self.phase in ("starting", "patrol"):
+            self._receive_results(list(data), self._deliver)
+
+    def _deliver(self, data: List[int]) -> None:
+        """An algorithm message the communication model let through (possibly late)."""
+        if self.phase in ("starting", "patrol") and not self.failed:
+            self.heard(data[0], self.fx.now())
             if self.started:
                 self.strategy.on_message(list(data), self.fx.now())
             else:
@@ -189,12 +206,14 @@ class PatrolAgentCore(Driver):
 
     def on_position(self, robot_id: int, x: float, y: float) -> None:
         """A teammate's position (from /positions)."""
-        if robot_id != self.id:
-            self.team_pos[robot_id] = (x, y)
+        if robot_id != self.id and not self.failed:
+            self._receive_position(robot_id, x, y)
 
     def on_feedback(self, seq: int, x: float, y: float) -> None:
         """Own position while goal ``seq`` is active: evaluate interference (only robots with
         a lower id are checked, so of two close robots only the higher id reacts)."""
+        if self.failed:
+            return
         self.own_pos = (x, y)
         if seq != self.seq or self.phase != "patrol" or self.state != "moving":
             return
@@ -211,7 +230,7 @@ class PatrolAgentCore(Driver):
 
     def on_goal_result(self, seq: int, succeeded: bool) -> None:
         """Outcome of goal ``seq``: reached, or failed (aborted/rejected/lost by navigation)."""
-        if seq != self.seq or self.phase != "patrol" or self.state != "moving":
+        if seq != self.seq or self.phase != "patrol" or self.state != "moving" or self.failed:
             return
         if succeeded:
             self.state = "waiting"
@@ -238,8 +257,10 @@ class PatrolAgentCore(Driver):
 
     # -- life cycle ------------------------------------------------------------------------
     def _later(self, delay, fn):
+        life = self.life
+
         def fire():
-            if self.phase != "ended":
+            if self.phase != "ended" and life == self.life:
                 fn()
         self.fx.call_later(max(0.0, float(delay)), fire)
 
@@ -262,6 +283,7 @@ class PatrolAgentCore(Driver):
         for data in pending:
             self.strategy.on_message(data, now)
         self.target = self.start_vertex
+        self._start_silence_check(now)
         self._decide(self.start_vertex)
 
     def _arrived(self, seq):
@@ -339,9 +361,12 @@ class PatrolAgentCore(Driver):
 def build_agent(effects: Effects, graph, robot_id: int, team_size: int, map_name: str,
                 algorithm: str, start_vertex: int, start_position=None, seed: int = 0,
                 params=None, goal_wait: float = 0.0, comm_delay: float = 0.0,
-                loss: float = 0.0) -> PatrolAgentCore:
+                loss: float = 0.0, comm="perfect", occupancy=None, positions=None,
+                silence_check: bool = False) -> PatrolAgentCore:
     """A :class:`PatrolAgentCore` running the registered strategy ``algorithm``; the
-    strategy's own generator is ``random.Random(seed)``.
+    strategy's own generator is ``random.Random(seed)``. ``comm`` is a ``--comm`` spec (or a
+    model), applied at this robot as the receiver, seeded ``seed * 7919 + 3``; ``occupancy``
+    is the map for the range model's line of sight (:mod:`patrolling_sim.agent_faults`).
 
     Raises:
         KeyError: unknown algorithm (one-line message listing the known ones).
@@ -354,4 +379,6 @@ def build_agent(effects: Effects, graph, robot_id: int, team_size: int, map_name
                               else tuple(start_position))
         return create(algorithm, ctx)
     return PatrolAgentCore(effects, robot_id, start_vertex, factory, seed=seed,
-                           goal_wait=goal_wait, comm_delay=comm_delay, loss=loss)
+                           goal_wait=goal_wait, comm_delay=comm_delay, loss=loss,
+                           comm=make_comm(comm, seed, occupancy), positions=positions,
+                           silence_check=silence_check)

@@ -19,7 +19,8 @@ import math
 import networkx as nx
 import numpy as np
 
-from .extract import _pieces, _select_pieces, shortest_path, usable_space
+from .extract_paths import shortest_path
+from .extract_space import _pieces, _select_pieces, usable_space
 from .initial_poses import ROBOT_RADIUS
 from .mapio import FREE
 

@@ -7,6 +7,7 @@ double-quoted values may contain spaces; keys absent from the file read as 0.
 import shlex
 
 from .errors import PatrolInputError
+from .textfile import read_text
 
 
 def load_dta_params(path, defaults=None):
@@ -15,13 +16,7 @@ def load_dta_params(path, defaults=None):
     Raises:
         PatrolInputError: missing file, no profile, or a malformed line.
     """
-    try:
-        with open(path, encoding="utf-8") as f:
-            lines = f.read().splitlines()
-    except FileNotFoundError:
-        raise PatrolInputError(f"{path}: DTA params file not found") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise PatrolInputError(f"{path}: cannot read DTA params ({e.__class__.__name__})") from None
+    lines = read_text(path, "DTA params file").splitlines()
     sections = {}
     current = None
     for lineno, raw in enumerate(lines, 1):

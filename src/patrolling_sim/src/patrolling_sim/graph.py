@@ -18,9 +18,9 @@ integer pixel lengths; every algorithm uses them, motion uses metres.
   and ``cost_m``. Edges are normally listed at both ends; multi-edges are kept.
 
 :class:`PatrolGraph` wraps such a graph with the lookup tables the algorithms need
-(ordered neighbour lists, all-pairs shortest path costs, hop counts).
+(ordered neighbour lists, all-pairs shortest path costs, hop counts; the tables and their
+tie rule are in :mod:`patrolling_sim.graph_tables`).
 """
-import heapq
 import logging
 import math
 import os
@@ -29,6 +29,7 @@ import networkx as nx
 import numpy as np
 
 from .errors import GraphFormatError
+from .graph_tables import hop_table, shortest_path_tables
 
 log = logging.getLogger(__name__)
 
@@ -289,6 +290,8 @@ class PatrolGraph:
             for w, c in self.neighbors[u]:
                 if (u, w) not in self._arc or c < self._arc[(u, w)]:
                     self._arc[(u, w)] = c
+        self._nbr_ids = [tuple(dict.fromkeys(w for w, _ in self.neighbors[v]))
+                         for v in range(self.n)]
         self._dist = None
         self._next = None
         self._hops = None
@@ -304,12 +307,8 @@ class PatrolGraph:
         return len(self.neighbors[v])
 
     def neighbor_ids(self, v):
-        """Distinct neighbour ids of v, in first-listed order."""
-        seen = []
-        for w, _ in self.neighbors[v]:
-            if w not in seen:
-                seen.append(w)
-        return seen
+        """Distinct neighbour ids of v, in first-listed order (a precomputed tuple)."""
+        return self._nbr_ids[v]
 
     def arc_cost(self, u, w):
         """Cheapest cost (px) of an edge u->w, or None if not adjacent."""
@@ -320,38 +319,8 @@ class PatrolGraph:
         return [c for u in range(self.n) for _, c in self.neighbors[u]]
 
     def _all_pairs(self):
-        if self._dist is not None:
-            return
-        n = self.n
-        dist = np.full((n, n), np.inf)
-        nxt = np.full((n, n), -1, dtype=int)
-        for s in range(n):
-            d = dist[s]
-            d[s] = 0.0
-            pred = [-1] * n
-            heap = [(0.0, s)]
-            done = [False] * n
-            while heap:
-                du, u = heapq.heappop(heap)
-                if done[u]:
-                    continue
-                done[u] = True
-                for w, c in self.neighbors[u]:
-                    nd = du + c
-                    if nd < d[w]:
-                        d[w] = nd
-                        pred[w] = u
-                        heapq.heappush(heap, (nd, w))
-            # next hop from s towards every t: walk predecessors back
-            for t in range(n):
-                if t == s or pred[t] == -1:
-                    continue
-                u = t
-                while pred[u] != s:
-                    u = pred[u]
-                nxt[s, t] = u
-        self._dist = dist
-        self._next = nxt
+        if self._dist is None:
+            self._dist, self._next = shortest_path_tables(self.n, self._arc)
 
     @property
     def dist(self):
@@ -375,22 +344,7 @@ class PatrolGraph:
     def hops(self):
         """(n, n) array of hop counts (edges on a fewest-edge path)."""
         if self._hops is None:
-            n = self.n
-            h = np.full((n, n), np.inf)
-            for s in range(n):
-                h[s, s] = 0
-                frontier = [s]
-                k = 0
-                while frontier:
-                    k += 1
-                    new = []
-                    for u in frontier:
-                        for w, _ in self.neighbors[u]:
-                            if h[s, w] == np.inf:
-                                h[s, w] = k
-                                new.append(w)
-                    frontier = new
-            self._hops = h
+            self._hops = hop_table(self.n, self._arc)
         return self._hops
 
     def nearest_vertex(self, x, y):

@@ -23,233 +23,25 @@ The world this module adds (see ``docs/protocol.md``, "Graph mode"):
 
 Deterministic: the same inputs and seed give the same files (apart from wall-clock fields).
 """
-import bisect
 import heapq
 import itertools
 import math
 import os
 import random
-import signal
-import sys
 import time
-from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence
 
-from . import paths, run_status, validation
-from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID, Effects,
+from . import paths, run_status
+from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID,
                          build_agent)
-from .algorithms import REGISTRY
-from .algorithms.base import MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
+from .algorithms.base import MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from .errors import PatrolInputError
+from .graph_config import (FEEDBACK_PERIOD, MIN_TRIP, TIMERESULTS_PERIOD,  # noqa: F401
+                           TRAVEL_MODES, GraphSimConfig)
+from .graph_motion import _Robot
 from .graph import PatrolGraph
 from .monitor_core import MonitorCore, Stats
 from .results import ResultWriter, RunInfo, default_prefix, hostname, timestamp
-
-TIMERESULTS_PERIOD = 900.0
-#: shortest trip (s): a goal on the robot's own vertex still takes one navigation cycle, so
-#: simulated time always advances between two decisions of a robot
-MIN_TRIP = 0.5
-#: s between two navigation feedbacks (positions published, interference evaluated): the
-#: move_base controller's 5 Hz
-FEEDBACK_PERIOD = 0.2
-TRAVEL_MODES = ("graph", "euclidean")
-
-
-@dataclass
-class GraphSimConfig:
-    """Inputs of one graph-mode run (defaults as the ROS runner's)."""
-    map: str = "grid"
-    robots: int = 1
-    alg: str = "CR"
-    duration: float = 3600.0        # sim seconds after GO; 0 = until `cycles`
-    cycles: int = 0                 # stop after this many complete patrol cycles; 0 = off
-    seed: int = 0
-    speed: float = 1.0              # m/s along graph edges (or straight lines)
-    gwait: float = 0.0
-    comm_delay: float = 0.0
-    loss: float = 0.0
-    initpos: str = "default"
-    results_dir: str = "results"
-    params: dict = field(default_factory=dict)
-    goal_fail: float = 0.0          # probability that a navigation goal fails on the way
-    interference: bool = True       # robots within 2 m interfere (the original's rule)
-    travel: str = "graph"           # "graph": shortest graph path; "euclidean": straight line
-
-    def validate(self):
-        if self.alg not in REGISTRY:
-            raise PatrolInputError(f"argument --alg: unknown algorithm '{self.alg}' (known: "
-                                   f"{', '.join(sorted(REGISTRY))})")
-        if self.robots < 1:
-            raise PatrolInputError(f"argument --robots: team size must be >= 1, got {self.robots}")
-        if self.duration < 0 or (self.duration == 0 and self.cycles <= 0):
-            raise PatrolInputError("argument --duration: must be > 0 (or give --cycles)")
-        if self.cycles < 0:
-            raise PatrolInputError(f"argument --cycles: must be >= 0, got {self.cycles}")
-        if self.speed <= 0:
-            raise PatrolInputError(f"argument --speed: must be > 0, got {self.speed}")
-        if self.gwait < 0:
-            raise PatrolInputError(f"argument --gwait: must be >= 0, got {self.gwait}")
-        if self.comm_delay < 0:
-            raise PatrolInputError(f"argument --comm-delay: must be >= 0, got {self.comm_delay}")
-        if not 0 <= self.loss < 1:
-            raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
-        if not 0 <= self.goal_fail < 1:
-            raise PatrolInputError(f"argument --goal-fail: must be in [0, 1), got {self.goal_fail}")
-        if self.travel not in TRAVEL_MODES:
-            raise PatrolInputError(f"argument --travel: must be one of {', '.join(TRAVEL_MODES)}"
-                                   f", got '{self.travel}'")
-        # the same one-line errors as the experiment runner (patrolling_sim.validation)
-        validation.check_map_files(self.map)
-        return self
-
-
-class _Robot(Effects):
-    """One robot's body in the graph world and the :class:`Effects` its core acts through.
-
-    The body is a point: on vertex ``a`` (``loc = (a, a, 0)``), or a fraction ``f`` along the
-    edge a->b (``loc = (a, b, f)``). A trip is a list of straight pieces
-    ``(x0, y0, x1, y1, length_m, a, b, f0, f1)`` run at constant speed."""
-
-    def __init__(self, sim, rid, start_vertex):
-        self.sim = sim
-        self.id = rid
-        self.core = None
-        self.loc = (start_vertex, start_vertex, 0.0)
-        self.xy = tuple(float(c) for c in sim.g.pos[start_vertex])
-        self.last_vertex = start_vertex       # last vertex reached (reachability of goals)
-        self.goal = None
-        self.pieces = None                    # active trip, None when standing still
-        self.cum = None                       # cumulative length at the end of each piece
-        self.depart = 0.0
-        self.duration = 0.0
-        self.seq = None                       # the core's sequence number of the trip
-        self.token = 0                        # bumps on every stop: stale events ignored
-
-    # -- Effects ------------------------------------------------------------------------------
-    def now(self):
-        return self.sim.t
-
-    def publish(self, data):
-        self.sim.publish(self.id, data)
-
-    def call_later(self, delay, fn):
-        self.sim.schedule(self.sim.t + delay, fn)
-
-    def backup(self):
-        """Nothing to do: the real manoeuvre moves a robot a few centimetres, a point robot
-        on the graph stays where it failed (the core still spends the back-up time)."""
-
-    def clear_costmaps(self):
-        """Nothing to do: the graph world has no costmaps."""
-
-    def cancel_goal(self):
-        self._stop()
-
-    def send_goal(self, vertex, seq):
-        sim = self.sim
-        self._stop()
-        self.token += 1
-        token = self.token
-        self.goal, self.seq = vertex, seq
-        pieces = self._route(vertex)
-        if pieces is None:                     # the graph cannot reach it: navigation fails
-            sim.schedule(sim.t, lambda: self._failed(token, seq))
-            return
-        cum, total = [], 0.0
-        for p in pieces:
-            total += p[4]
-            cum.append(total)
-        self.pieces, self.cum, self.depart = pieces, cum, sim.t
-        self.duration = max(MIN_TRIP, total / sim.cfg.speed)
-        sim.wake()
-        if sim.cfg.goal_fail > 0 and sim.rng.random() < sim.cfg.goal_fail:
-            sim.schedule(sim.t + sim.rng.random() * self.duration,
-                         lambda: self._failed(token, seq))
-        else:
-            sim.schedule(sim.t + self.duration, lambda: self._arrived(token, seq))
-
-    # -- motion -------------------------------------------------------------------------------
-    def _route(self, goal):
-        """Pieces from the current location to ``goal``; None if unreachable."""
-        g = self.sim.g
-        res = g.resolution
-        gx, gy = (float(c) for c in g.pos[goal])
-        if not math.isfinite(g.dist[self.last_vertex, goal]):
-            return None
-        if self.sim.cfg.travel == "euclidean":
-            x, y = self.xy
-            return [(x, y, gx, gy, math.hypot(gx - x, gy - y), None, None, 0.0, 0.0)]
-        a, b, f = self.loc
-        if a != b and 0.0 < f < 1.0:
-            # mid-edge (after a stop): leave by whichever end of the edge is shorter overall
-            length = g.arc_cost(a, b) * res
-            x, y = self.xy
-            via_a = f * length + g.dist[a, goal] * res
-            via_b = (1.0 - f) * length + g.dist[b, goal] * res
-            if not (math.isfinite(via_a) or math.isfinite(via_b)):
-                return None
-            if via_b <= via_a:
-                end, first = b, (x, y, *g.pos[b], (1.0 - f) * length, a, b, f, 1.0)
-            else:
-                end, first = a, (x, y, *g.pos[a], f * length, a, b, f, 0.0)
-            return [first] + self._edge_pieces(g.path(end, goal))
-        start = b if (a != b and f >= 1.0) else a
-        path = g.path(start, goal)
-        return None if path is None else self._edge_pieces(path)
-
-    def _edge_pieces(self, path):
-        g = self.sim.g
-        res = g.resolution
-        out = []
-        for u, w in zip(path, path[1:]):
-            (x0, y0), (x1, y1) = g.pos[u], g.pos[w]
-            out.append((float(x0), float(y0), float(x1), float(y1), g.arc_cost(u, w) * res,
-                        u, w, 0.0, 1.0))
-        return out
-
-    def position(self, t):
-        """(x, y, loc) at time ``t`` of the active trip."""
-        total = self.cum[-1] if self.cum else 0.0
-        if total <= 0.0:
-            return self.xy[0], self.xy[1], self.loc
-        s = min(total, max(0.0, (t - self.depart) / self.duration * total))
-        k = min(bisect.bisect_left(self.cum, s), len(self.pieces) - 1)
-        x0, y0, x1, y1, length, a, b, f0, f1 = self.pieces[k]
-        into = s - (self.cum[k] - length)
-        r = into / length if length > 0 else 1.0
-        x, y = x0 + (x1 - x0) * r, y0 + (y1 - y0) * r
-        loc = (a, b, f0 + (f1 - f0) * r) if a is not None else self.loc
-        return x, y, loc
-
-    def _stop(self):
-        """Stand still where the robot is now; pending arrival/failure events go stale.
-        The robot's last published position is where it stopped."""
-        if self.pieces is None:
-            return
-        x, y, self.loc = self.position(self.sim.t)
-        self.xy = (x, y)
-        self.pieces = self.cum = None
-        self.token += 1
-        self.sim.stood(self)                       # last feedback: where it stopped
-
-    def _arrived(self, token, seq):
-        if token != self.token:
-            return
-        v = self.goal
-        self.pieces = self.cum = None
-        self.token += 1
-        self.loc = (v, v, 0.0)
-        self.xy = tuple(float(c) for c in self.sim.g.pos[v])
-        self.sim.stood(self)                       # last feedback: on the vertex
-        self.last_vertex = v
-        self.core.on_goal_result(seq, True)
-
-    def _failed(self, token, seq):
-        if token != self.token:
-            return
-        self._stop()
-        self.core.on_goal_result(seq, False)
-
 
 class GraphSimulator:
     """One run. Use :meth:`run`; see the module docstring for the model."""
@@ -285,6 +77,37 @@ class GraphSimulator:
         self.log = log or (lambda s: None)
         self.termination = None
         self.writer = None
+        self._init_scenario()
+
+    def _init_scenario(self):
+        """The run's scenario (docs/scenarios.md): the failure schedule, and whether the
+        communication model is applied (then every core has its own view of the teammates'
+        positions, fed through the model, and every feedback tick is simulated)."""
+        from .scenario import check_scenario, is_perfect
+        cfg = self.cfg
+        self.perfect_comm = is_perfect(cfg.comm)
+        self.occupancy = None
+        if (cfg.comm or "").strip().lower().startswith("range"):
+            from .mapio import load_map
+            self.occupancy = load_map(paths.map_files(cfg.map)[0])
+        _, self.schedule_failures = check_scenario(
+            cfg.comm, cfg.attrition, cfg.robots,
+            cfg.duration if cfg.duration > 0 else math.inf, cfg.seed)
+        self.scenario = not self.perfect_comm or bool(self.schedule_failures)
+        if not self.perfect_comm:
+            self.skip_idle_ticks = False
+
+    def true_position(self, k):
+        """Where robot ``k`` is now (m): the range model's truth."""
+        r = self.robots[k]
+        return r.position(self.t)[:2] if r.pieces is not None else r.xy
+
+    def _share_position(self, rid, xy):
+        """Robot ``rid`` published ``xy`` on /positions: each teammate's core receives it
+        through its communication model."""
+        for r in self.robots:
+            if r.id != rid and r.core is not None:
+                r.core.on_position(rid, xy[0], xy[1])
 
     def _start_vertices(self):
         from .initial_poses import load_initial_poses, start_positions
@@ -316,6 +139,13 @@ class GraphSimulator:
         kind = data[1] if len(data) > 1 else None
         if kind == MSG_TARGET_REACHED and len(data) > 2:
             self._report(sender, data[2])
+        elif kind == MSG_FAILURE and len(data) > 2:
+            if data[2] == 0:
+                self.monitor.robot_failed(sender, self.t)
+                self.log(f"t={self.t:.1f} s: robot {sender} failed")
+            else:
+                self.monitor.robot_repaired(sender, self.t)
+                self.log(f"t={self.t:.1f} s: robot {sender} repaired")
         elif kind == MSG_INTERFERENCE:
             self.monitor.interference(sender, self.t)
         elif kind != MSG_INIT:
@@ -326,6 +156,8 @@ class GraphSimulator:
     def stood(self, robot):
         """``robot`` stopped at ``robot.xy``: that is its last published position."""
         self.team_pos[robot.id] = self._cur[robot.id] = robot.xy
+        if not self.perfect_comm:
+            self._share_position(robot.id, robot.xy)
 
     def wake(self):
         """A robot started a trip: the next feedback tick must not be later than the next
@@ -358,6 +190,9 @@ class GraphSimulator:
                 x, y, _ = r.position(t)
                 cur[r.id] = team[r.id] = (x, y)
                 moving.append(r)
+        if not self.perfect_comm:
+            for r in moving:
+                self._share_position(r.id, cur[r.id])
         lazy = self.skip_idle_ticks
         d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
         for r in moving:
@@ -428,8 +263,27 @@ class GraphSimulator:
         robot.core = build_agent(robot, self.g, robot.id, cfg.robots, self.map_name, cfg.alg,
                                  sv, robot.xy, seed=cfg.seed * 1000 + robot.id + 1,
                                  params=params, goal_wait=cfg.gwait,
-                                 comm_delay=cfg.comm_delay, loss=cfg.loss)
-        robot.core.team_pos = self.team_pos
+                                 comm_delay=cfg.comm_delay, loss=cfg.loss, comm=cfg.comm,
+                                 occupancy=self.occupancy, positions=self.true_position,
+                                 silence_check=bool(self.schedule_failures))
+        if self.perfect_comm:
+            robot.core.team_pos = self.team_pos
+
+    def _fail(self, rid):
+        self.robots[rid].core.fail()
+
+    def _repair(self, rid):
+        self.robots[rid].core.repair()
+
+    def comm_counters(self):
+        """Every robot's receiver counters (agent_faults.COUNTER_KEYS)."""
+        return {r.id: r.core.comm_counters() for r in self.robots if r.core is not None}
+
+    def _write_scenario(self):
+        from .scenario import write_scenario
+        write_scenario(self.prefix, self.cfg.comm, self.cfg.attrition, self.schedule_failures,
+                       self.monitor.failures, self.comm_counters(), seed=self.cfg.seed,
+                       mode="graph", occupancy=self.occupancy)
 
     def _timeresults(self):
         if self.writer:
@@ -464,6 +318,10 @@ class GraphSimulator:
             for r in self.robots:
                 r.core.on_results([MONITOR_ID, MSG_INIT, GO])
             self.schedule(TIMERESULTS_PERIOD, self._timeresults)
+            for f in self.schedule_failures:     # sim seconds after GO (t = 0)
+                self.schedule(f.t, lambda k=f.robot: self._fail(k))
+                if f.back is not None:
+                    self.schedule(f.back, lambda k=f.robot: self._repair(k))
             self._tick = math.inf                # feedback ticks start with the first trip
             end = cfg.duration if cfg.duration > 0 else float("inf")
             self.termination = "TIMEOUT"
@@ -492,6 +350,8 @@ class GraphSimulator:
                     self.writer.write_info(self.monitor.stats(self.t),
                                            time.monotonic() - self.wall0, status)
                 self.writer.close()
+                if self.scenario:
+                    self._write_scenario()
                 run_status.write_run_yaml(self.prefix, {
                     "status": status, "reason": {
                         run_status.TIMEOUT: f"the duration of {cfg.duration:g} sim s was "
@@ -526,92 +386,6 @@ def run_graph_experiment(cfg: GraphSimConfig, write=True, log=None):
 
 
 def main(argv=None):
-    from .cli import CliParser, run_main, setup_logging
-
-    def _main(args):
-        ap = CliParser(prog="graph_sim.py", description=(
-            "Run a patrolling experiment at graph level (no ROS): robots travel along the "
-            "patrol graph at constant speed; same algorithms, metrics and result files as "
-            "the ROS mode."))
-        ap.add_argument("--map", default="grid", help="map name or path to its yaml/.graph")
-        ap.add_argument("--robots", type=int, default=1, help="team size N")
-        ap.add_argument("--alg", default="CR", help="algorithm: " + ", ".join(sorted(REGISTRY)))
-        ap.add_argument("--duration", type=float, default=3600.0,
-                        help="simulated seconds after GO (0: run until --cycles)")
-        ap.add_argument("--cycles", type=int, default=0,
-                        help="stop after this many complete patrol cycles (0: off)")
-        ap.add_argument("--seed", type=int, default=0)
-        ap.add_argument("--speed", type=float, default=1.0, help="robot speed (m/s)")
-        ap.add_argument("--gwait", type=float, default=0.0, help="goal wait (s)")
-        ap.add_argument("--comm-delay", type=float, default=0.0, help="message delay (s)")
-        ap.add_argument("--loss", type=float, default=0.0, help="message loss rate [0, 1)")
-        ap.add_argument("--initpos", default="default", help="initial poses variant")
-        ap.add_argument("--goal-fail", type=float, default=0.0,
-                        help="probability that a navigation goal fails on the way [0, 1)")
-        ap.add_argument("--interference", choices=("on", "off"), default="on",
-                        help="robots closer than 2 m interfere (default on)")
-        ap.add_argument("--travel", choices=TRAVEL_MODES, default="graph",
-                        help="graph: along shortest graph paths; euclidean: straight line "
-                             "to the goal vertex (default graph)")
-        ap.add_argument("--results-dir", default="results")
-        ap.add_argument("--repeat", type=int, default=1,
-                        help="run this many times with seeds seed, seed+1, ...")
-        ap.add_argument("--quiet", action="store_true")
-        a = ap.parse_args(args)
-        setup_logging()
-        got = []
-
-        def on_term(signum, frame):     # SIGTERM ends the run as SIGINT does: files kept
-            got.append(signum)
-            raise KeyboardInterrupt
-        signal.signal(signal.SIGTERM, on_term)
-        if a.repeat < 1:
-            ap.error(f"argument --repeat: must be >= 1, got {a.repeat}")
-        first = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
-                               cycles=a.cycles, seed=a.seed, speed=a.speed, gwait=a.gwait,
-                               comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
-                               results_dir=a.results_dir).validate()
-        _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos,
-                                                     alg=first.alg)
-        warning = validation.team_size_warning(first.robots, pgraph.n, paths.map_name(a.map))
-        if warning:
-            print(warning, file=sys.stderr)
-        validation.check_writable_dir(a.results_dir)
-        for k in range(a.repeat):
-            cfg = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
-                                 cycles=a.cycles, seed=a.seed + k, speed=a.speed, gwait=a.gwait,
-                                 comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
-                                 results_dir=a.results_dir, goal_fail=a.goal_fail,
-                                 interference=a.interference == "on", travel=a.travel)
-            t0 = time.monotonic()
-            sim = GraphSimulator(cfg, log=None if a.quiet else print)
-            # a map that is not a shipped one is filed under a name that cannot collide
-            # with a shipped map (its name + a hash of its files), as in the ROS runner
-            label = validation.result_map_name(cfg.map)
-            if label != sim.map_name:
-                sim.prefix = claim_prefix(default_prefix(cfg.results_dir, label, cfg.robots,
-                                                         cfg.alg))
-            try:
-                stats = sim.run()
-            except KeyboardInterrupt:
-                if sim.prefix:
-                    sig = "SIGTERM" if got else "SIGINT"
-                    rec = run_status.read_run_yaml(sim.prefix) or {}
-                    rec.update(signal=sig, exit_code=run_status.exit_code_for(
-                        run_status.INTERRUPTED, sig), reason=f"interrupted by {sig}")
-                    run_status.write_run_yaml(sim.prefix, rec)
-                    print(f"interrupted by {sig}; results: {sim.prefix}_*", file=sys.stderr)
-                return run_status.exit_code_for(run_status.INTERRUPTED,
-                                                "SIGTERM" if got else "SIGINT")
-            prefix = sim.prefix
-            if label != sim.map_name:
-                run_status.set_info_field(prefix, 0, label)
-            avg = "-" if stats.global_avg is None else f"{stats.global_avg:.1f} s"
-            mx = "-" if stats.global_max is None else f"{stats.global_max:.1f} s"
-            print(f"{cfg.alg} on {paths.map_name(cfg.map)} with {cfg.robots} robot(s), seed "
-                  f"{cfg.seed}: {stats.elapsed:.0f} s simulated in {time.monotonic() - t0:.2f} s"
-                  f" | avg idleness {avg} | max {mx} | "
-                  f"cycles {stats.cycles} | visits {stats.total_visits}")
-            print(f"results: {prefix}_*")
-        return 0
-    return run_main(_main, "graph_sim.py", argv)
+    """The graph-mode command line (:func:`patrolling_sim.graph_cli.main`)."""
+    from .graph_cli import main as cli_main
+    return cli_main(argv)

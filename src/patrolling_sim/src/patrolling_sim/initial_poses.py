@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from .errors import PatrolInputError
+from .textfile import read_text
 
 log = logging.getLogger(__name__)
 
@@ -41,11 +42,9 @@ def load_initial_poses(path):
         PatrolInputError: missing file, no ``[InitialPoses]`` section, or a malformed value.
     """
     cp = configparser.ConfigParser()
+    text = read_text(path, "initial poses file")
     try:
-        with open(path, encoding="utf-8") as f:
-            cp.read_file(f)
-    except FileNotFoundError:
-        raise PatrolInputError(f"{path}: initial poses file not found") from None
+        cp.read_string(text, source=path)
     except configparser.Error as e:
         raise PatrolInputError(f"{path}: malformed INI file ({e.__class__.__name__})") from None
     if not cp.has_section("InitialPoses"):

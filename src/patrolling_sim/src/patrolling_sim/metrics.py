@@ -211,33 +211,36 @@ class FailureImpact:
 
 
 def failure_impact(times, series, t_fail: float, t_end: float, window: float = 600.0,
-                   smooth: float = 60.0, band: float = 0.1) -> FailureImpact:
+                   smooth: float = 300.0, band: float = 0.1) -> FailureImpact:
     """Impact of a failure at ``t_fail`` on the graph idleness ``series`` (from
     :func:`graph_idleness_series`), up to ``t_end`` (the next failure or the end of the run).
 
     ``before``: mean of the series over [t_fail - window, t_fail). ``after``: mean over the
     last ``min(window, (t_end - t_fail) / 2)`` s before ``t_end`` (the settled level).
-    ``settle_time``: the first delay after which the series, smoothed by a moving average of
-    ``smooth`` s, stays within ``band`` (relative) of ``after`` until ``t_end``."""
-    times = np.asarray(times)
-    series = np.asarray(series)
+    ``settle_time``: the first delay after the failure from which the *trailing* average of
+    the series over ``smooth`` s (causal: it only looks back, so the end of the run is not
+    distorted) stays within ``band`` (relative) of ``after`` until ``t_end``; None if it
+    never does."""
+    times = np.asarray(times, dtype=float)
+    series = np.asarray(series, dtype=float)
     pre = (times >= max(0.0, t_fail - window)) & (times < t_fail)
     tail = min(window, (t_end - t_fail) / 2.0)
     post = (times >= t_end - tail) & (times <= t_end)
     before = float(series[pre].mean()) if pre.any() else float("nan")
     after = float(series[post].mean()) if post.any() else float("nan")
-    sel = (times >= t_fail) & (times <= t_end)
-    ts, ys = times[sel], series[sel]
     settle = None
-    if len(ys) and math.isfinite(after) and after > 0:
-        step = float(ts[1] - ts[0]) if len(ts) > 1 else 1.0
+    sel = np.nonzero((times >= t_fail) & (times <= t_end))[0]
+    if len(sel) and math.isfinite(after) and after > 0:
+        step = float(times[1] - times[0]) if len(times) > 1 else 1.0
         w = max(1, int(round(smooth / step)))
-        sm = np.convolve(ys, np.ones(w) / w, mode="same")
-        outside = np.abs(sm - after) > band * after
+        c = np.concatenate(([0.0], np.cumsum(series)))
+        idx = np.arange(len(series))
+        lo = np.maximum(0, idx - w + 1)
+        trailing = (c[idx + 1] - c[lo]) / (idx + 1 - lo)
+        outside = np.abs(trailing[sel] - after) > band * after
         if not outside.any():
             settle = 0.0
-        else:
+        elif not outside[-1]:
             last_out = int(np.nonzero(outside)[0][-1])
-            if last_out < len(ts) - 1 - w // 2:
-                settle = float(ts[last_out + 1] - t_fail)
+            settle = float(times[sel[last_out + 1]] - t_fail)
     return FailureImpact(float(t_fail), before, after, settle)

@@ -8,6 +8,7 @@ results from the two modes are computed by one piece of code:
     core.start(now)                               # GO: time zero
     r = core.visit(robot, vertex, now)            # a TARGET_REACHED report [id,11,v]
     core.interference(robot, now)                 # an INTERFERENCE report [id,12]
+    core.robot_failed(robot, now)                 # [id,13,0]; core.robot_repaired: [id,13,1]
     s = core.stats(now)                           # every metric (docs/monitor.md, "Metrics")
 
 Definitions (the original's, without its bugs):
@@ -108,6 +109,10 @@ class MonitorCore:
         self.cycles = 0
         #: robot id -> time since GO of its last visit report (the FAIL rule, docs/monitor.md "Run statuses")
         self.last_report: Dict[int, float] = {}
+        #: robots failed now (scenario failures, docs/scenarios.md): not a FAIL of the run
+        self.dead_robots: Set[int] = set()
+        #: every failure: [robot, t_fail, t_repair or None] (times since GO)
+        self.failures: List[list] = []
 
     # -- handshake ----------------------------------------------------------------------
     def robot_ready(self, robot_id: int) -> bool:
@@ -162,6 +167,33 @@ class MonitorCore:
         """Record ``[id,12]`` (ignored before GO)."""
         if self.started:
             self.interferences += 1
+
+    def robot_failed(self, robot_id: int, now: float) -> None:
+        """Record ``[id,13,0]``: a scheduled failure. Idleness keeps being measured over every
+        vertex; the robot is exempt from the silence (FAIL) rule while it is down."""
+        if not self.started or robot_id in self.dead_robots:
+            return
+        self.dead_robots.add(robot_id)
+        self.failures.append([robot_id, self.elapsed(now), None])
+
+    def robot_repaired(self, robot_id: int, now: float) -> None:
+        """Record ``[id,13,1]``: the robot is back; its silence clock restarts now."""
+        if robot_id not in self.dead_robots:
+            return
+        self.dead_robots.discard(robot_id)
+        t = self.elapsed(now)
+        for f in reversed(self.failures):
+            if f[0] == robot_id and f[2] is None:
+                f[2] = t
+                break
+        self.last_report[robot_id] = t
+
+    def silent_robots(self, now: float, timeout: float) -> List[int]:
+        """Robots not failed whose last visit report is older than ``timeout`` s (the FAIL
+        rule, docs/monitor.md "Run statuses"); failed robots are never listed."""
+        t = self.elapsed(now)
+        return sorted(r for r, last in self.last_report.items()
+                      if r not in self.dead_robots and t - last > timeout)
 
     # -- metrics ------------------------------------------------------------------------
     def current_idleness(self, now: float) -> List[float]:

@@ -7,6 +7,7 @@ Most shipped files (example, cumberland) predate the current graphs and are *sta
 :func:`load_route` detects that and says why.
 """
 from .errors import PatrolInputError, StaleRouteError
+from .textfile import read_text
 
 
 def parse_route(text, path="<route>"):
@@ -45,15 +46,7 @@ def validate_route(length, route, pgraph, path="<route>"):
 
 def load_route(path, pgraph):
     """Read and validate a route file. Returns the list of vertex ids (closed walk)."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
-    except FileNotFoundError:
-        raise PatrolInputError(f"{path}: MSP route file not found") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise PatrolInputError(f"{path}: cannot read MSP route file ({e.__class__.__name__})") \
-            from None
-    length, route = parse_route(text, path)
+    length, route = parse_route(read_text(path, "MSP route file"), path)
     validate_route(length, route, pgraph, path)
     return route
 

@@ -17,6 +17,7 @@ import socket
 from dataclasses import dataclass
 from typing import List, Optional
 
+from .errors import PatrolInputError
 from .monitor_core import Stats
 
 IDLENESS_HEADER = "Time;Robot;Node;Idleness;Interferences"
@@ -50,6 +51,25 @@ def default_prefix(results_dir: str, map_name: str, team_size: int, alg: str,
     """``<results_dir>/<map>_<N>/<ALG>/<host>/<stamp>`` (folders not created)."""
     return os.path.join(results_dir, f"{map_name}_{team_size}", alg, host or hostname(),
                         stamp or timestamp())
+
+
+def claim_prefix(prefix: str, marker: str = "_idleness.csv", content: str = "") -> str:
+    """``prefix`` or ``prefix_k``: the first for which ``<prefix>[_k]<marker>`` can be
+    created exclusively (safe when several runs start in the same second); that file is
+    created with ``content``. Parent folders are created. The one prefix claim of the
+    runner (marker ``_config.yaml``, the configuration) and of graph mode."""
+    os.makedirs(os.path.dirname(prefix) or ".", exist_ok=True)
+    for k in range(1000):
+        p = prefix if k == 0 else f"{prefix}_{k}"
+        try:
+            fd = os.open(p + marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            continue
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(content)
+        return p
+    raise PatrolInputError(f"argument --results-dir: cannot create a unique run prefix "
+                           f"for {prefix}")
 
 
 @dataclass

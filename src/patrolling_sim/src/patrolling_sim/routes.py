@@ -15,8 +15,8 @@
   before each walk, emulated by :class:`CRand`) that either visits every vertex (a
   Hamiltonian path; a circuit if its ends are adjacent) or gets stuck. A circuit is used as
   it is; a path is closed by walking it back. On grid this gives the original's 49-step
-  route. It returns None where the original would fall back to its longest-cycle search
-  (every other shipped map).
+  route. It returns None where the original goes on to its longest-cycle / longest-path
+  construction (every other shipped map; :mod:`patrolling_sim.cyclic_route`).
 
 All are deterministic: every robot computes the same result from the same graph.
 """

@@ -16,9 +16,17 @@ log = logging.getLogger(__name__)
 #: (fake localisation, 4x: 907 MB with 4 robots, 1417 with 8, 2017 with 12, i.e. about
 #: 140 MB per robot over a fixed 350 MB; ``--processes separate``: 2.7 GB with 12 robots,
 #: about 200 MB per robot). Update these figures when the benchmark is re-run.
+#: ``pooled`` / ``pooled-separate`` (navigation in nav_host processes, docs/navigation.md):
+#: per robot and per nav_host process, the largest measured (docs/benchmarks/runner.md,
+#: "Layouts"): navigation PSS per robot 37-41 MB on grid with 12 robots, 60 MB on cumberland
+#: with 32, 78 MB on broughton with 64 (whose plan caches hold all 163 goals, 0.8 GB each);
+#: whole runs 0.8, 2.3 and 5.5 GB. One agent process per robot adds about 60 MB per robot
+#: (shared -> separate above).
 MEMORY_MB = {
     "fixed": 350.0,                     # master, simulator, map server, monitor, runner
-    "per_robot": {"shared": 140.0, "separate": 200.0},
+    "per_robot": {"shared": 140.0, "separate": 200.0, "pooled": 80.0,
+                  "pooled-separate": 140.0},
+    "per_nav_host": 150.0,
 }
 
 
@@ -67,9 +75,24 @@ def available_memory_mb():
     return None
 
 
+def _layout_figures(robots, processes):
+    """(MB per robot, nav_host processes, text of the fixed part) of a --processes value."""
+    mode = str(processes).partition(":")[0]
+    per = MEMORY_MB["per_robot"].get(mode, MEMORY_MB["per_robot"]["shared"])
+    hosts = 0
+    if mode.startswith("pooled"):
+        from .runner.config import process_layout
+        try:
+            hosts = process_layout(processes, robots)[2]
+        except PatrolInputError:
+            hosts = 1
+    fixed = MEMORY_MB["fixed"] + hosts * MEMORY_MB["per_nav_host"]
+    return per, hosts, fixed
+
+
 def memory_estimate_mb(robots, processes="shared"):
-    per = MEMORY_MB["per_robot"].get(processes, MEMORY_MB["per_robot"]["shared"])
-    return MEMORY_MB["fixed"] + per * robots
+    per, _, fixed = _layout_figures(robots, processes)
+    return fixed + per * robots
 
 
 def check_memory(robots, processes="shared", force=False, available=None):
@@ -78,9 +101,11 @@ def check_memory(robots, processes="shared", force=False, available=None):
     avail = available_memory_mb() if available is None else available
     if avail is None or need <= avail:
         return need
+    per, hosts, fixed = _layout_figures(robots, processes)
+    host_text = f" + {hosts} nav_host x {MEMORY_MB['per_nav_host']:.0f} MB" if hosts else ""
     msg = (f"argument --robots: {robots} robots need about {need / 1024:.1f} GB "
-           f"({MEMORY_MB['fixed']:.0f} MB + {robots} x "
-           f"{MEMORY_MB['per_robot'].get(processes, 0):.0f} MB, measured), the machine has "
+           f"({MEMORY_MB['fixed']:.0f} MB{host_text} + {robots} x {per:.0f} MB, measured), "
+           f"the machine has "
            f"{avail / 1024:.1f} GB available")
     if not force:
         raise PatrolInputError(msg + "; give --force to try anyway")

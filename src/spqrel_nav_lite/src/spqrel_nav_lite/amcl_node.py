@@ -14,6 +14,7 @@ import rospy
 import tf2_ros
 from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from rospy.numpy_msg import numpy_msg
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty, EmptyResponse
 
@@ -22,6 +23,8 @@ from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter
 from spqrel_nav_lite.ros_util import (fill_pose, get_map, namespace_prefix, param, pose_of,
                                       strip_slash, transform_msg)
 
+# scans deserialised straight into numpy arrays (ranges: float32 ndarray, no tuple of floats)
+SCAN = numpy_msg(LaserScan)
 POS = dict(check=lambda v: v > 0, what="must be positive")
 NONNEG = dict(check=lambda v: v >= 0, what="must be >= 0")
 
@@ -30,13 +33,18 @@ class Amcl:
     """``ns``: parameter namespace (``"~"`` as a standalone node, ``"amcl/"`` inside
     robot_nav); ``omap``: the map if already loaded. ``pose_listeners``: callables
     ``f(pose, stamp_sec)`` that receive every estimate in-process (robot_nav hands it to
-    move_base this way)."""
+    move_base this way). ``robot_ns`` (``"/robot_3/"`` in nav_host): prefix of every topic,
+    service and parameter name, and the robot's frames' prefix; ``shared``: the process's
+    :class:`~spqrel_nav_lite.shared.SharedMaps` (map and likelihood field built once)."""
 
-    def __init__(self, ns="~", omap=None, pose_listeners=()):
+    def __init__(self, ns="~", omap=None, pose_listeners=(), robot_ns="", shared=None):
+        if robot_ns:
+            ns = robot_ns + ns
         self._p = functools.partial(param, ns=ns)
         self.pose_listeners = list(pose_listeners)
         ns_param = ns
-        ns = namespace_prefix()
+        r = robot_ns
+        ns = robot_ns.strip("/") + "/" if robot_ns.strip("/") else namespace_prefix()
         self.global_frame = strip_slash(self._p("global_frame_id", "map", str))
         self.odom_frame = strip_slash(self._p("odom_frame_id", ns + "odom", str))
         self.base_frame = strip_slash(self._p("base_frame_id", ns + "base_link", str))
@@ -55,9 +63,13 @@ class Amcl:
         self.laser_min_range = self._p("laser_min_range", -1.0)
         self.tf_broadcast = self._p("tf_broadcast", True, bool)
         seed = self._p("seed", -1, int)
+        if shared is not None:
+            omap = shared.map
         omap = get_map(ns_param) if omap is None else omap
         t0 = time.time()
-        self.field = LikelihoodField(omap, self._p("laser_likelihood_max_dist", 2.0, **POS))
+        max_dist = self._p("laser_likelihood_max_dist", 2.0, **POS)
+        self.field = shared.likelihood_field(max_dist) if shared is not None else \
+            LikelihoodField(omap, max_dist)
         self.pf = ParticleFilter(
             self.field, min_p, max_p, alphas,
             z_hit=self._p("laser_z_hit", 0.5, **NONNEG), z_rand=self._p("laser_z_rand", 0.5, **NONNEG),
@@ -83,15 +95,16 @@ class Amcl:
         self.correction = None           # map -> odom
         self.update_times = []
         self.tf = tf2_ros.TransformBroadcaster()
-        self.pose_pub = rospy.Publisher("amcl_pose", PoseWithCovarianceStamped, queue_size=2,
-                                        latch=True)
-        self.cloud_pub = rospy.Publisher("particlecloud", PoseArray, queue_size=2, latch=True)
-        rospy.Service("global_localization", Empty, self.on_global)
-        rospy.Subscriber("initialpose", PoseWithCovarianceStamped, self.on_initialpose,
+        self.pose_pub = rospy.Publisher(r + "amcl_pose", PoseWithCovarianceStamped,
+                                        queue_size=2, latch=True)
+        self.cloud_pub = rospy.Publisher(r + "particlecloud", PoseArray, queue_size=2,
+                                         latch=True)
+        rospy.Service(r + "global_localization", Empty, self.on_global)
+        rospy.Subscriber(r + "initialpose", PoseWithCovarianceStamped, self.on_initialpose,
                          queue_size=1)
-        rospy.Subscriber("odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
-        rospy.Subscriber("base_scan", LaserScan, self.on_scan, queue_size=1, tcp_nodelay=True,
-                         buff_size=1 << 20)
+        rospy.Subscriber(r + "odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
+        rospy.Subscriber(r + "base_scan", SCAN, self.on_scan, queue_size=1,
+                         tcp_nodelay=True, buff_size=1 << 20)
 
     # -- inputs --------------------------------------------------------------------------------
     def on_odom(self, msg):

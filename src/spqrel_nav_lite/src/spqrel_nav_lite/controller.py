@@ -96,8 +96,18 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
     idx = lo + int(np.argmin(d))
     # look-ahead point
     L = p.lookahead + p.lookahead_gain * max(0.0, v_now)
-    seg = np.hypot(*np.diff(path[idx:], axis=0).T) if idx < len(path) - 1 else np.zeros(0)
-    acc = np.concatenate([[0.0], np.cumsum(seg)])
+    # arc length along the path from idx, over a prefix just long enough to reach L (the
+    # whole remaining path made this the controller's largest cost on long paths)
+    n = 32
+    while True:
+        part = path[idx:idx + n + 1]
+        acc = np.zeros(len(part))
+        if len(part) > 1:
+            d = np.diff(part, axis=0)
+            np.cumsum(np.hypot(d[:, 0], d[:, 1]), out=acc[1:])
+        if acc[-1] >= L or idx + n + 1 >= len(path):
+            break
+        n *= 4
     k = int(np.searchsorted(acc, L))
     target = path[min(idx + k, len(path) - 1)]
     dx, dy = target[0] - x, target[1] - y

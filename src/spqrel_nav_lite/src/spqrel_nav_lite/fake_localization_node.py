@@ -19,12 +19,17 @@ from spqrel_nav_lite.ros_util import (fill_pose, namespace_prefix, param, pose_o
 class FakeLocalization:
     """``ns``: parameter namespace (``"~"`` as a standalone node, ``"fake_localization/"``
     inside robot_nav). ``pose_listeners``: callables ``f(pose, stamp_sec)`` that receive
-    every published pose in-process (robot_nav hands it to move_base this way)."""
+    every published pose in-process (robot_nav hands it to move_base this way). ``robot_ns``
+    (``"/robot_3/"`` in nav_host): prefix of every topic and parameter name and of the
+    robot's frames."""
 
-    def __init__(self, ns="~", pose_listeners=()):
+    def __init__(self, ns="~", pose_listeners=(), robot_ns=""):
+        if robot_ns:
+            ns = robot_ns + ns
         self._p = functools.partial(param, ns=ns)
         self.pose_listeners = list(pose_listeners)
-        ns = namespace_prefix()
+        r = robot_ns
+        ns = robot_ns.strip("/") + "/" if robot_ns.strip("/") else namespace_prefix()
         self.global_frame = strip_slash(self._p("global_frame_id", "map", str))
         self.odom_frame = strip_slash(self._p("odom_frame_id", ns + "odom", str))
         self.base_frame = strip_slash(self._p("base_frame_id", ns + "base_link", str))
@@ -33,9 +38,9 @@ class FakeLocalization:
         self.pending = None
         self.lock = threading.Lock()
         self.tf = tf2_ros.TransformBroadcaster()
-        self.pose_pub = rospy.Publisher("amcl_pose", PoseWithCovarianceStamped, queue_size=1)
-        rospy.Subscriber("odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
-        rospy.Subscriber("base_pose_ground_truth", Odometry, self.on_truth, queue_size=1,
+        self.pose_pub = rospy.Publisher(r + "amcl_pose", PoseWithCovarianceStamped, queue_size=1)
+        rospy.Subscriber(r + "odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
+        rospy.Subscriber(r + "base_pose_ground_truth", Odometry, self.on_truth, queue_size=1,
                          tcp_nodelay=True)
 
     def on_odom(self, msg):

@@ -4,24 +4,51 @@ import math
 import numpy as np
 
 
+_BEAMS = {}     # (angle_min, angle_increment, beams, step) -> (angles, cos, sin)
+
+
+def _beams(angle_min, angle_increment, n, step):
+    """Bearings of every ``step``-th of ``n`` beams and their cosines and sines: the same
+    for every scan of a laser, so computed once per laser geometry (the robots of a nav_host
+    share their lasers' geometry). Read-only arrays; the dict is bounded."""
+    key = (angle_min, angle_increment, n, step)
+    beams = _BEAMS.get(key)
+    if beams is None:
+        a = angle_min + angle_increment * np.arange(0, n, step)
+        beams = (a, np.cos(a), np.sin(a))
+        for arr in beams:
+            arr.setflags(write=False)
+        if len(_BEAMS) > 64:
+            _BEAMS.clear()
+        _BEAMS[key] = beams
+    return beams
+
+
 def scan_points(ranges, angle_min, angle_increment, range_min, range_max, laser_x=0.0,
                 step=1, max_range=None):
     """(N, 2) points in the robot frame from a scan (every ``step``-th beam, valid ranges only,
     optionally only those closer than ``max_range``). Also returns (ranges, angles) used."""
     r = np.asarray(ranges, dtype=float)[::step]
-    a = angle_min + angle_increment * np.arange(0, len(ranges), step)[:len(r)]
+    a, ca, sa = _beams(angle_min, angle_increment, len(ranges), step)
     ok = np.isfinite(r) & (r >= max(range_min, 1e-3)) & (r < range_max)
     if max_range is not None:
         ok &= r <= max_range
-    r, a = r[ok], a[ok]
-    return np.column_stack([laser_x + r * np.cos(a), r * np.sin(a)]), r, a
+    r = r[ok]
+    pts = np.empty((len(r), 2))
+    np.multiply(r, ca[:len(ok)][ok], out=pts[:, 0])
+    pts[:, 0] += laser_x
+    np.multiply(r, sa[:len(ok)][ok], out=pts[:, 1])
+    return pts, r, a[:len(ok)][ok]
 
 
 def to_world(points, pose):
     x, y, th = pose
     c, s = math.cos(th), math.sin(th)
     p = np.asarray(points, dtype=float).reshape(-1, 2)
-    return np.column_stack([x + c * p[:, 0] - s * p[:, 1], y + s * p[:, 0] + c * p[:, 1]])
+    out = np.empty_like(p)
+    out[:, 0] = x + c * p[:, 0] - s * p[:, 1]
+    out[:, 1] = y + s * p[:, 0] + c * p[:, 1]
+    return out
 
 
 class ObstacleMemory:

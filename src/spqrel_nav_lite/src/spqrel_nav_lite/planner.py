@@ -20,23 +20,13 @@ the smallest such bound is optimal on the whole map. The window grows (doubling 
 until that holds or it covers the map.
 """
 import math
-from collections import OrderedDict
 
 import numpy as np
 
-from .mapio import FREE
+from .planner_grid import PlannerGrid, symmetric_csr
 
 
 WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
-
-
-def _symmetric_csr(src, dst, weight, n):
-    """n x n CSR matrix holding every edge (src, dst, weight) in both directions."""
-    from scipy.sparse import csr_matrix
-    g = csr_matrix((np.concatenate([weight, weight]),
-                    (np.concatenate([src, dst]), np.concatenate([dst, src]))), shape=(n, n))
-    g.sort_indices()
-    return g
 
 
 class PlanningError(Exception):
@@ -44,35 +34,37 @@ class PlanningError(Exception):
 
 
 class GlobalPlanner:
+    """Per-robot planner state (temporary obstacles, current navigation function) over a
+    :class:`~spqrel_nav_lite.planner_grid.PlannerGrid`: ``grid`` shares one among the robots
+    of a process (then the grid parameters here are ignored); without it one is built."""
+
     def __init__(self, omap, robot_radius=0.225, inflation_radius=0.66, resolution=0.1,
-                 cost_scaling=3.0, cost_weight=4.0, obstacle_margin=0.1, cache_bytes=32 << 20):
-        if resolution <= 0:
-            raise ValueError(f"planner resolution must be positive, got {resolution}")
-        self.map = omap
-        self.k = max(1, int(round(resolution / omap.resolution)))
-        self.res = omap.resolution * self.k
-        self.origin = omap.origin[:2]
-        self.robot_radius = float(robot_radius)
-        self.inflation_radius = float(inflation_radius)
+                 cost_scaling=3.0, cost_weight=4.0, obstacle_margin=0.1, cache_bytes=32 << 20,
+                 grid=None):
+        if grid is None:
+            grid = PlannerGrid(omap, robot_radius, inflation_radius, resolution, cost_scaling,
+                               cost_weight, cache_bytes)
+        self.grid = grid
+        self.map = grid.map
+        self.k, self.res, self.origin = grid.k, grid.res, grid.origin
+        self.robot_radius = grid.robot_radius
+        self.inflation_radius = grid.inflation_radius
         self.obstacle_margin = float(obstacle_margin)
-        k = self.k
-        clear = omap.clearance
-        self.h = (omap.height + k - 1) // k
-        self.w = (omap.width + k - 1) // k
-        rows = np.minimum(np.arange(self.h) * k + k // 2, omap.height - 1)
-        cols = np.minimum(np.arange(self.w) * k + k // 2, omap.width - 1)
-        self.clear = clear[np.ix_(rows, cols)].astype(np.float64)
-        self.lethal = self.clear < self.robot_radius
-        d = self.clear - self.robot_radius
-        self.cost = np.where(d < self.inflation_radius,
-                             1.0 + cost_weight * np.exp(-cost_scaling * np.maximum(d, 0.0)), 1.0)
-        self._build_edges()
+        self.h, self.w = grid.h, grid.w
+        self.clear, self.lethal, self.cost = grid.clear, grid.lethal, grid.cost
+        self._src, self._dst, self._wt = grid.src, grid.dst, grid.wt
+        self._row_start = grid.row_start
+        self._free_graph, self._rows = grid.free_graph, grid.graph_rows
+        self._graph = None
         self._obstacles = np.zeros((self.h, self.w), dtype=bool)
-        self._field = None      # (goal_index, dist, pred, computed without obstacles)
+        self._field = None      # (goal_index, dist, pred, computed without obstacles, window)
         self.window_searches = 0        # searches with obstacles that stayed in a window
-        self._cache = OrderedDict()     # goal_index -> (dist, pred) without obstacles
-        self._cache_cap = max(0, int(cache_bytes)) // max(1, self.h * self.w * 8)
-        self.searches = 0               # Dijkstra runs so far (statistics)
+        self.searches = 0               # Dijkstra runs of this planner (statistics)
+
+    @property
+    def _cache(self):
+        """The navigation-function cache (shared with the grid's other planners)."""
+        return self.grid.cache
 
     # -- grid helpers -------------------------------------------------------------------
     def cell(self, x, y):
@@ -88,46 +80,11 @@ class GlobalPlanner:
     def blocked_mask(self):
         return self.lethal | self._obstacles
 
-    def _build_edges(self):
-        h, w = self.h, self.w
-        idx = np.arange(h * w).reshape(h, w)
-        ok = ~self.lethal
-        src, dst, wt = [], [], []
-        for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):     # (col, row) offsets
-            length = math.hypot(di, dj) * self.res
-            j0, j1 = max(0, -dj), h - max(0, dj)
-            i0, i1 = max(0, -di), w - max(0, di)
-            a = idx[j0:j1, i0:i1]
-            b = idx[j0 + dj:j1 + dj, i0 + di:i1 + di]
-            m = ok[j0:j1, i0:i1] & ok[j0 + dj:j1 + dj, i0 + di:i1 + di]
-            if di and dj:   # no corner cutting past a forbidden cell
-                m &= ok[j0 + dj:j1 + dj, i0:i1] & ok[j0:j1, i0 + di:i1 + di]
-            ca = self.cost[j0:j1, i0:i1][m]
-            cb = self.cost[j0 + dj:j1 + dj, i0 + di:i1 + di][m]
-            src.append(a[m])
-            dst.append(b[m])
-            wt.append(length * 0.5 * (ca + cb))
-        src = np.concatenate(src).astype(np.int32)
-        order = np.argsort(src, kind="stable")          # by source cell, hence by source row
-        self._src = src[order]
-        self._dst = np.concatenate(dst).astype(np.int32)[order]
-        self._wt = np.concatenate(wt)[order]
-        # edges whose source lies in rows [j0, j1): _src[_row_start[j0]:_row_start[j1]]
-        self._row_start = np.searchsorted(self._src, np.arange(h + 1) * w).astype(np.int64)
-        self._free_graph = None
-        self._graph = None
-
     def _csgraph(self):
-        """The cell graph for Dijkstra with the current temporary obstacles. The obstacle-free
-        graph is built once, with both directions stored (``dijkstra(directed=False)`` would
-        rebuild the symmetric graph on every call, 10x the cost of the search itself);
-        obstacles only set the weights of the edges touching their cells to infinity."""
-        if self._free_graph is None:
-            n = self.h * self.w
-            s, d, wt = self._src, self._dst, self._wt
-            self._free_graph = _symmetric_csr(s, d, wt, n)
-            self._rows = np.repeat(np.arange(n, dtype=np.int32),
-                                   np.diff(self._free_graph.indptr))
+        """The cell graph for Dijkstra with the current temporary obstacles: the grid's
+        obstacle-free graph (both directions stored: ``dijkstra(directed=False)`` would rebuild
+        the symmetric graph on every call, 10x the cost of the search itself) with the edges
+        touching obstacle cells set to infinity."""
         if self._graph is None:
             if self._obstacles.any():
                 flat = self._obstacles.ravel()
@@ -256,21 +213,17 @@ class GlobalPlanner:
     def _navigation_function(self, g, free):
         """(dist, pred, free) of a Dijkstra run from cell index ``g``, without temporary
         obstacles if ``free`` (or if there are none). Obstacle-free fields come from the
-        cache when this goal was searched before."""
+        shared cache when this goal was searched before (by any robot on the same grid)."""
         free = free or not self._obstacles.any()
-        if free and g in self._cache:
-            self._cache.move_to_end(g)
-            return self._cache[g] + (True, None)
+        if free:
+            dist, pred, searched = self.grid.free_navigation_function(g)
+            self.searches += int(searched)
+            return dist, pred, True, None
         from scipy.sparse.csgraph import dijkstra
-        graph = self._csgraph() if not free else (self._csgraph_free())
-        dist, pred = dijkstra(graph, directed=True, indices=g, return_predecessors=True)
+        dist, pred = dijkstra(self._csgraph(), directed=True, indices=g,
+                              return_predecessors=True)
         self.searches += 1
-        field = (dist.astype(np.float32), pred.astype(np.int32))
-        if free and self._cache_cap > 0:
-            self._cache[g] = field
-            while len(self._cache) > self._cache_cap:
-                self._cache.popitem(last=False)
-        return field + (free, None)
+        return dist.astype(np.float32), pred.astype(np.int32), False, None
 
     def _obstacle_field(self, s, g, free_dist=None):
         """(dist, pred, False, window) of the search with temporary obstacles, exact on the
@@ -319,7 +272,7 @@ class GlobalPlanner:
         ld = (dj[keep] - j0) * ww + di[keep] - i0
         lw = wt[keep]
         n = ww * wh
-        graph = _symmetric_csr(ls, ld, lw, n)
+        graph = symmetric_csr(ls, ld, lw, n)
         gl = (g // w - j0) * ww + g % w - i0
         dist, pred = dijkstra(graph, directed=True, indices=gl, return_predecessors=True)
         return dist, pred
@@ -348,11 +301,6 @@ class GlobalPlanner:
             if len(lb):
                 best = min(best, float(lb.min()))
         return best
-
-    def _csgraph_free(self):
-        if self._free_graph is None:
-            self._csgraph()
-        return self._free_graph
 
     def path_cost(self, start):
         """Navigation-function value (weighted metres) at a position, inf if unreachable or no

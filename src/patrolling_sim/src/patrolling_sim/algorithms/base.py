@@ -38,21 +38,13 @@ from typing import Any, Callable, Dict, List, Optional
 
 from ..graph import PatrolGraph
 
-#: message type ids on /results (docs/protocol.md)
-MSG_INIT = 10
-MSG_TARGET_REACHED = 11
-MSG_INTERFERENCE = 12
-MSG_GBS_REACHED = 31
-MSG_SEBS_REACHED = 32
-MSG_DTA_IDLENESS = 40
-MSG_SSI_TASK_REQUEST = 41
-MSG_SSI_BID = 42
-
-#: largest value of an int16 payload entry (every /results entry is an int16)
-INT16_MAX = 32767
-#: what the original's DTA agents send instead of an idleness entry (10 x seconds) or a bid
-#: that does not fit an int16
-INT16_CAP = 32000
+# message types and int16 caps on /results (docs/protocol.md): named once in
+# patrolling_sim.protocol, re-exported here for the algorithms
+from ..protocol import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_GBS_REACHED,  # noqa: F401
+                        MSG_INIT, MSG_INTERFERENCE, MSG_SEBS_REACHED, MSG_SSI_BID,
+                        MSG_SSI_TASK_REQUEST, MSG_TARGET_REACHED, MSG_ROBOT_STATUS)
+#: ``[i, 13, 0]`` robot i failed, ``[i, 13, 1]`` it is back (docs/scenarios.md)
+MSG_FAILURE = MSG_ROBOT_STATUS
 
 
 class Driver:
@@ -110,6 +102,8 @@ class PatrolStrategy:
     name = None
     #: value written to /algorithm_params and info.csv ("" if none)
     algorithm_params = ""
+    #: default s without a message from a teammate before :meth:`on_teammate_silent`
+    TEAMMATE_TIMEOUT = 120.0
 
     def __init__(self, ctx: StrategyContext):
         self.ctx = ctx
@@ -122,6 +116,9 @@ class PatrolStrategy:
         self.next = None              # vertex it is heading to
         self.last_visit = [0.0] * n   # time of the last visit known to this robot
         self.idleness = [0.0] * n     # idleness table, refreshed on events
+        #: s of silence after which a teammate is given up (param ``teammate_timeout``)
+        self.teammate_timeout = float(ctx.params.get("teammate_timeout",
+                                                     self.TEAMMATE_TIMEOUT))
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, start_vertex: int, now: float) -> None:
@@ -159,6 +156,16 @@ class PatrolStrategy:
     def on_message(self, data: List[int], now: float) -> None:
         """A /results message from another robot (own messages are filtered out by the
         driver). Default: ignore."""
+
+    def on_teammate_silent(self, robot_id: int, now: float) -> None:
+        """Teammate ``robot_id`` has sent nothing for ``teammate_timeout`` s (it may have
+        failed, docs/scenarios.md). Only called when the run has an attrition scenario.
+        Default: nothing (rules without teammate state keep their rule)."""
+
+    def on_repair(self, now: float) -> None:
+        """The robot is back after a failure (docs/scenarios.md), just before it decides
+        again. Every timer the strategy had asked for was void while it was down: a strategy
+        that waits on one (DTAP's auction) restarts it here. Default: nothing."""
 
     def on_goal_failed(self, vertex: int, now: float) -> int:
         """Navigation gave up on ``vertex`` after the resends. Default: as the original's

@@ -21,9 +21,11 @@ clamped to [0.5, 2]). The first decision sees an all-zero table. At vertex u:
    targets have the highest idleness are rewarded by +(1-H), those with the lowest punished
    by -(1-H) (punishment wins when both apply).
 
-Robots broadcast ``[id, 32, v, next]`` (SEBS's message id) on reaching v. Intentions count
-for every teammate (the original counts robots below its local TEAMSIZE, which grows from
-/positions messages; see docs/fidelity.md).
+Robots broadcast ``[id, 32, v, next]`` (SEBS's message id) on reaching v. As the original,
+an intention counts only if its sender's id is below the robot's *local* team size: own id + 1,
+raised to k + 1 whenever the position of robot k has been heard on /positions (the driver's
+``team_pos``; see docs/fidelity.md). A driver that hears no positions (no ``team_pos``
+attribute) gives the full team size.
 """
 import math
 
@@ -48,6 +50,7 @@ class ConcurrentBayesianLearning(PatrolStrategy):
         self.real_hist = {(u, w): 1.0 for u in range(n) for w in self.graph.neighbor_ids(u)}
         self.intention = {}
         self.decision = None            # (u, candidates, H) of the last decision with a choice
+        self.local_team_size = self.id + 1  # the original's TEAMSIZE, raised by positions heard
 
     def start(self, start_vertex, now):
         """As the original's CBLS agent: last visits at the agent's start time (the start
@@ -74,8 +77,19 @@ class ConcurrentBayesianLearning(PatrolStrategy):
         total = sum(self.real_hist[(u, w)] for w in self.graph.neighbor_ids(u))
         return self.real_hist[(u, c)] / total
 
+    def team_size_heard(self):
+        """The original's local TEAMSIZE: own id + 1, raised (never lowered) to k + 1 by
+        every robot k whose position was heard (the driver's ``team_pos`` keys)."""
+        heard = getattr(self.driver, "team_pos", None)
+        if heard is None:
+            return self.ctx.team_size
+        if heard:
+            self.local_team_size = max(self.local_team_size, max(heard) + 1)
+        return self.local_team_size
+
     def _taken(self):
-        return {t for r, t in self.intention.items() if r != self.id}
+        size = self.team_size_heard()
+        return {t for r, t in self.intention.items() if r != self.id and r < size}
 
     # -- decision ---------------------------------------------------------------------------
     def choose_next(self, now):
@@ -146,3 +160,7 @@ class ConcurrentBayesianLearning(PatrolStrategy):
                 and self.ctx.team_size > 1:
             self._record_visit(data[2], now)
             self.intention[data[0]] = data[3]
+
+    def on_teammate_silent(self, robot_id, now):
+        """A silent teammate no longer takes its announced vertex out of the candidates."""
+        self.intention.pop(robot_id, None)

@@ -8,13 +8,17 @@ The route is the original's: a Hamiltonian path found by its seeded randomised w
 a Hamiltonian circuit where the walk finds one. The construction is seeded, so it has no
 random element: the same route on every run.
 
-Where the walk finds neither (every shipped map but grid) the original goes on to a
-longest-cycle search with detours that is not reproduced here; this module then uses the
-short closed tour of :mod:`~patrolling_sim.algorithms.cgg_tsp` and logs it once (see
-docs/fidelity.md). ``CGG_TSP`` always uses that tour.
+Where the walk finds neither (every shipped map but grid) the route is the original's
+second construction (:func:`patrolling_sim.cyclic_route.cyclic_route`): its longest cycle or
+longest path between degree-1 vertices, with detours over the edges it misses (``num_arcs``
+bisected), a path walked back. Should that construction fail (no cycle of V/2 entries and
+no two degree-1 vertices, a search over its step bound, or a route missing a vertex), this
+module uses the short closed tour of :mod:`~patrolling_sim.algorithms.cgg_tsp` and logs a
+one-line warning (see docs/fidelity.md). ``CGG_TSP`` always uses that tour.
 """
 import logging
 
+from ..cyclic_route import RouteConstructionError, cyclic_route
 from ..routes import closed_route, hamiltonian_route
 from .base import PatrolStrategy, register
 
@@ -60,18 +64,24 @@ class RouteFollower(PatrolStrategy):
 
 
 def original_cyclic_route(pgraph):
-    """(route, source): the original's Hamiltonian route, or the short closed tour where the
-    original's first step finds no Hamiltonian path (source "hamiltonian" / "tsp")."""
+    """(route, source): the original's route -- its Hamiltonian route (source
+    "hamiltonian"), else its longest cycle / longest path with detours ("cycle" / "path"),
+    else, where that construction fails, the short closed tour ("tsp", logged)."""
     cache = pgraph.__dict__.setdefault("_cgg_route_cache", {})
     if "route" not in cache:
         route = hamiltonian_route(pgraph)
-        if route is None:
-            log.info("CGG: no Hamiltonian path on graph '%s'; using the short closed tour "
-                     "(the original's longest-cycle construction is not reproduced)",
-                     pgraph.name)
-            cache["route"] = (closed_route(pgraph), "tsp")
-        else:
+        if route is not None:
             cache["route"] = (route, "hamiltonian")
+        else:
+            try:
+                route, info = cyclic_route(pgraph)
+                if set(route) != set(range(pgraph.n)):
+                    raise RouteConstructionError("CGG route: the route misses a vertex")
+                cache["route"] = (route, info["main"])
+            except RouteConstructionError as err:
+                log.warning("%s on graph '%s'; CGG uses the short closed tour of CGG_TSP "
+                            "instead", err, pgraph.name)
+                cache["route"] = (closed_route(pgraph), "tsp")
     route, source = cache["route"]
     return list(route), source
 

@@ -232,6 +232,21 @@ class DTASSIPart(PatrolStrategy):
         return (self.hops[cv, v] <= 1 and g[v] > float(np.mean(g)) + GREEDY_SD * float(np.std(g))
                 and best[0] != 0)
 
+    def on_repair(self, now):
+        """Back after a failure: the running auction's deadline died with the robot, so the
+        auction starts a new round (a fresh request and deadline)."""
+        if self.auction is not None:
+            self._auction_round(self.auction[1], now)
+
+    def on_teammate_silent(self, robot_id, now):
+        """A silent teammate's won tasks are open again: its best bids are forgotten, so the
+        next auctions re-assign those vertices (and they count in no one's task set)."""
+        lost = [v for v, (_, r) in self.best_bid.items() if r == robot_id]
+        for v in lost:
+            del self.best_bid[v]
+        if lost:
+            self._update_tasks()
+
     def on_message(self, data, now):
         if self.gi is None or len(data) < 2:
             return

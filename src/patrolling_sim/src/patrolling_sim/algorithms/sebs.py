@@ -44,3 +44,8 @@ class StateExchangeBayesian(PatrolStrategy):
             self.last_visit[data[2]] = now
             self.idleness[data[2]] = 0.0     # the table is refreshed at the next decision
             self.intention[data[0]] = data[3]
+
+    def on_teammate_silent(self, robot_id, now):
+        """A silent teammate (failed, or out of reach) no longer claims its announced vertex:
+        its intention stops lowering that vertex's probability."""
+        self.intention.pop(robot_id, None)

@@ -10,6 +10,8 @@ Output files in ``out_dir``:
   only when no group has two algorithms);
 - ``boxplot_<map>.png``, ``heatmap_<map>_<N>[...].png``, ``histogram_<map>_<N>[...].png``,
   ``runs/time_<run>.png`` (unless ``run_plots`` is false).
+- ``scenario_<k>_<map>_<N>.png``: graph idleness over time with failure times marked, when
+  runs have a ``_scenario.yaml`` (section "Scenarios", :mod:`.scenarios`).
 """
 import datetime
 import logging
@@ -306,6 +308,11 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
                       str(r["complete_cycles"]), f"{r['interference_rate']:.2f}",
                       f"{r['sim_duration']:.1f}", r["status"]])
     sections.append(("Runs", H.table(rheader, rrows, text_cols=(0, 1, 10))))
+    from .scenarios import scenario_section     # runs with failures / a comm model
+    scen = scenario_section(runs, out_dir)
+    if scen is not None:
+        sections.append(("Scenarios", scen[0]))
+        files += scen[1]
     if run_plots:
         sections.append(("Idleness over time (one figure per run)",
                          "<details open><summary>show / hide</summary>" +

@@ -8,7 +8,6 @@ takes ``self.lock`` and hands the event to the core; nothing blocks inside a cal
 Start-up: load the graph, read ``/initial_pos`` (start vertex = nearest vertex, |dx|+|dy|),
 wait for ``robot_i/move_base`` (logging every 5 s), then the core announces and waits for GO.
 """
-import math
 import re
 import threading
 
@@ -23,54 +22,14 @@ from std_srvs.srv import Empty
 
 from .. import algorithms, paths
 from ..agent_core import Effects, build_agent
-from ..algorithms.base import INT16_MAX
+from ..algorithms.base import MSG_FAILURE
 from ..errors import PatrolInputError
 from ..graph import PatrolGraph, load_graph
+from .agent_scenario import AgentScenario
+from .agent_params import (AgentError, clamp_int16, float_param, parse_ids,  # noqa: F401
+                           parse_robot_frame, read_common_params, start_vertex_from)
 
 SERVER_LOG_PERIOD = 5.0        # s between "waiting for move_base" log lines
-INT16_MIN = -32768
-
-_ROBOT_FRAME = re.compile(r"robot_(\d+)(?:/|$)")
-
-
-class AgentError(Exception):
-    """Fatal start-up problem; ``str()`` is one line, the node exits with ``code``."""
-
-    def __init__(self, message, code=2):
-        super().__init__(message)
-        self.code = code
-
-
-def parse_robot_frame(frame_id):
-    """Robot index from a ``/positions`` frame id ``robot_<i>/map`` (None if absent)."""
-    m = _ROBOT_FRAME.search(frame_id or "")
-    return int(m.group(1)) if m else None
-
-
-def clamp_int16(data):
-    """(clamped list, True if any value had to be clamped)."""
-    out, clamped = [], False
-    for x in data:
-        x = int(x)
-        if x > INT16_MAX:
-            x, clamped = INT16_MAX, True
-        elif x < INT16_MIN:
-            x, clamped = INT16_MIN, True
-        out.append(x)
-    return out, clamped
-
-
-def start_vertex_from(graph, initial_pos, robot_id):
-    """Start vertex of ``robot_id`` from the flat ``/initial_pos`` list (x0,y0,x1,y1,...)."""
-    try:
-        flat = [float(x) for x in initial_pos]
-    except (TypeError, ValueError):
-        raise AgentError(f"/initial_pos: expected a flat list of numbers, got {initial_pos!r}")
-    if len(flat) < 2 * (robot_id + 1):
-        raise AgentError(f"/initial_pos has {len(flat) // 2} positions, robot {robot_id} "
-                         f"needs at least {robot_id + 1}")
-    x, y = flat[2 * robot_id], flat[2 * robot_id + 1]
-    return graph.nearest_vertex(x, y), (x, y)
 
 
 class PatrolAgent(Effects):
@@ -103,9 +62,9 @@ class PatrolAgent(Effects):
         if self.team_size < 1 or self.id >= self.team_size:
             raise AgentError(f"robot id {self.id} is outside a team of {self.team_size}")
 
-        goal_wait = self._float_param("/goal_reached_wait", 0.0, minimum=0.0)
-        comm_delay = self._float_param("/communication_delay", 0.0, minimum=0.0)
-        loss = self._float_param("/lost_message_rate", 0.0, minimum=0.0)
+        goal_wait = float_param("/goal_reached_wait", 0.0, minimum=0.0)
+        comm_delay = float_param("/communication_delay", 0.0, minimum=0.0)
+        loss = float_param("/lost_message_rate", 0.0, minimum=0.0)
         if loss > 1.0:
             raise AgentError(f"/lost_message_rate must be in [0, 1], got {loss}")
         if algorithm not in algorithms.REGISTRY:
@@ -117,15 +76,18 @@ class PatrolAgent(Effects):
         self.timers = set()
         self.clamp_warned = False
         self.announce_timer = None
+        self.scenario = AgentScenario(map_arg, self.id, self.team_size, initial_pos)
         try:
             self.core = build_agent(self, self.graph, self.id, self.team_size, self.map_name,
                                     algorithm, self.start_vertex, self.start_xy,
                                     seed=self.id if seed is None else int(seed),
                                     params=params, goal_wait=goal_wait,
-                                    comm_delay=comm_delay, loss=loss)
+                                    comm_delay=comm_delay, loss=loss,
+                                    **self.scenario.core_kwargs())
         except PatrolInputError as e:
             raise AgentError(str(e))
         self.strategy = self.core.strategy
+        self.scenario.attach(self)
 
         ns = f"robot_{self.id}"
         self.results_pub = rospy.Publisher("/results", Int16MultiArray, queue_size=100)
@@ -137,17 +99,6 @@ class PatrolAgent(Effects):
         self.frame_tag = f"robot_{self.id}/map"
         rospy.Subscriber("/results", Int16MultiArray, self._on_results, queue_size=100)
         rospy.Subscriber("/positions", Odometry, self._on_positions, queue_size=10)
-
-    @staticmethod
-    def _float_param(name, default, minimum=None):
-        raw = rospy.get_param(name, default)
-        try:
-            val = float(raw)
-        except (TypeError, ValueError):
-            raise AgentError(f"{name}: expected a number, got {raw!r}")
-        if minimum is not None and (val < minimum or math.isnan(val)):
-            raise AgentError(f"{name} must be >= {minimum}, got {raw!r}")
-        return val
 
     # -- Effects: what the core asks of ROS -------------------------------------------------
     def now(self):
@@ -181,6 +132,8 @@ class PatrolAgent(Effects):
         return t
 
     def publish(self, data):
+        if not self.scenario.may_publish() and (len(data) < 2 or data[1] != MSG_FAILURE):
+            return                      # a failed robot is silent (its pending timers too)
         data, clamped = clamp_int16(data)
         if clamped and not self.clamp_warned:
             self.clamp_warned = True
@@ -201,6 +154,11 @@ class PatrolAgent(Effects):
         self.gh = self.client.send_goal(
             goal, transition_cb=lambda gh: self._on_transition(gh, seq),
             feedback_cb=lambda gh, fb: self._on_feedback(fb, seq))
+
+    def stop_base(self):
+        """A zero twist now and 0.5 s later: the base stays where it is (after a failure)."""
+        self.cmd_pub.publish(Twist())
+        self.call_later(0.5, lambda: self.cmd_pub.publish(Twist()))
 
     def cancel_goal(self):
         gh, self.gh = self.gh, None
@@ -261,6 +219,7 @@ class PatrolAgent(Effects):
         return True
 
     def shutdown(self):
+        self.scenario.publish_counters()
         with self.lock:
             self.core.shutdown()
             gh, self.gh = self.gh, None
@@ -275,7 +234,9 @@ class PatrolAgent(Effects):
     # -- ROS callbacks -> core ---------------------------------------------------------------
     def _on_results(self, msg):
         with self.lock:
-            self.core.on_results(list(msg.data))
+            data = list(msg.data)
+            self.scenario.on_results(data)
+            self.core.on_results(data)
 
     def _on_positions(self, msg):
         k = parse_robot_frame(msg.header.frame_id)
@@ -305,34 +266,10 @@ class PatrolAgent(Effects):
         odom.header.frame_id = self.frame_tag
         odom.pose.pose.position.x = p.x
         odom.pose.pose.position.y = p.y
-        self.positions_pub.publish(odom)
         with self.lock:
+            if self.scenario.may_publish():
+                self.positions_pub.publish(odom)
             self.core.on_feedback(seq, p.x, p.y)
-
-
-def _optional_int_param(name):
-    """Private parameter ``name`` as an int, None if unset; AgentError if not an integer."""
-    value = rospy.get_param(name, None)
-    if value is None:
-        return None
-    try:
-        return int(value)
-    except (TypeError, ValueError):
-        raise AgentError(f"{name}: expected an integer, got {value!r}") from None
-
-
-def _read_common_params():
-    """(algorithm, team_size, seed, params) from the node's private parameters."""
-    if not rospy.has_param("~algorithm"):
-        known = ", ".join(algorithms.names())
-        raise AgentError(f"~algorithm is required (known: {known})")
-    alg = str(rospy.get_param("~algorithm"))
-    team_size = _optional_int_param("~team_size")
-    seed = _optional_int_param("~seed")
-    params = rospy.get_param("~params", {})
-    if not isinstance(params, dict):
-        raise AgentError(f"~params: expected a dictionary, got {params!r}")
-    return alg, team_size, seed, params
 
 
 def main(argv=None):
@@ -358,27 +295,12 @@ def main(argv=None):
         map_arg = rospy.get_param("~map", args[0] if len(args) >= 2 else None)
         if not map_arg:
             raise AgentError("map: give it as first argument or as ~map")
-        alg, team_size, seed, params = _read_common_params()
+        alg, team_size, seed, params = read_common_params()
         agent = PatrolAgent(map_arg, robot_id, alg, team_size, seed, params)
     except AgentError as e:
         sys.stderr.write(f"{prog}: error: {e}\n")
         return e.code
     return agent.run()
-
-
-def parse_ids(tokens):
-    """Robot ids from ``['0', '2', '5-7']`` -> [0, 2, 5, 6, 7] (sorted, no duplicates)."""
-    ids = set()
-    for tok in tokens:
-        m = re.fullmatch(r"(\d+)(?:-(\d+))?", tok)
-        if not m:
-            raise AgentError(f"robot id: expected an integer or a range a-b, got '{tok}'")
-        a = int(m.group(1))
-        b = int(m.group(2)) if m.group(2) is not None else a
-        if b < a:
-            raise AgentError(f"robot id range '{tok}' is empty")
-        ids.update(range(a, b + 1))
-    return sorted(ids)
 
 
 def main_multi(argv=None):
@@ -400,7 +322,7 @@ def main_multi(argv=None):
             raise AgentError("usage: patrol_agents <map> <id|a-b> [...] (with ~algorithm set)")
         ids = parse_ids(args[1:])
         map_arg = rospy.get_param("~map", args[0])
-        alg, team_size, seed, params = _read_common_params()
+        alg, team_size, seed, params = read_common_params()
         base = 0 if seed is None else seed
         agents = [PatrolAgent(map_arg, i, alg, team_size, base + i, params) for i in ids]
     except AgentError as e:

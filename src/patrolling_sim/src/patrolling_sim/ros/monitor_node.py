@@ -16,6 +16,12 @@ by :class:`patrolling_sim.results.ResultWriter`; this module is the ROS glue:
   down) it writes them too, with status "INTERRUPTED": the metrics cover a truncated run.
   The experiment runner then records the real cause (a signal, a crashed node).
 - publishes live graph markers on ``/patrol_graph_markers`` (~1 Hz).
+- scenarios (docs/scenarios.md): sets ``/go_time`` (ROS time of GO) so every agent fails on
+  the same clock; ``[id,13,0]`` / ``[id,13,1]`` record a robot's failure / repair (a failed
+  robot is exempt from the dead-robot rule, idleness is still measured over every vertex);
+  with a communication model or failures configured it writes ``<prefix>_scenario.yaml``
+  (:mod:`patrolling_sim.scenario`) with the agents' message counters
+  (``/scenario_counters/robot_<i>``).
 """
 import math
 import os
@@ -33,10 +39,11 @@ from ..graph import PatrolGraph, load_graph
 from ..monitor_core import MonitorCore
 from .. import run_status as rs
 from ..results import ResultWriter, RunInfo, default_prefix, timestamp
+from .. import scenario
 from . import markers
 
 MONITOR_ID = -1
-MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE = 10, 11, 12
+MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE, MSG_FAILURE = 10, 11, 12, 13
 GO, END = 100, 999
 TIMERESULTS_PERIOD = 900.0     # sim s between two timeresults rows
 LOOP_HZ = 10.0
@@ -88,6 +95,7 @@ class Monitor:
         self.publish_markers = _bool_param("~publish_markers", True)
         goal_wait = _num_param("/goal_reached_wait", 0.0, minimum=0.0)
         comm_delay = _num_param("/communication_delay", 0.0, minimum=0.0)
+        self._read_scenario(team_size)      # before any file is written
         stamp = timestamp()
         if not prefix:
             prefix = default_prefix(self.results_dir, self.map_name, team_size, alg,
@@ -129,6 +137,21 @@ class Monitor:
         rospy.loginfo("monitor: %s, %d robots, %s; results prefix %s", self.map_name,
                       team_size, alg, prefix)
 
+    def _read_scenario(self, team_size):
+        """The run's scenario from ``/comm_model``, ``/attrition``, ``/scenario_seed``."""
+        self.comm_spec = str(rospy.get_param("/comm_model", "perfect") or "perfect")
+        self.attrition_spec = str(rospy.get_param("~attrition_spec", "") or
+                                  rospy.get_param("/attrition", "none") or "none")
+        self.scenario_seed = _num_param("/scenario_seed", 0, int)
+        try:
+            _, self.schedule = scenario.check_scenario(
+                self.comm_spec, str(rospy.get_param("/attrition", "none") or "none"),
+                team_size, what_comm="/comm_model", what_attr="/attrition")
+        except PatrolInputError as e:
+            raise MonitorError(str(e))
+        self.scenario_active = not scenario.is_perfect(self.comm_spec) or bool(self.schedule)
+        self.scenario_written = False
+
     # -- messages -----------------------------------------------------------------------
     def _send(self, *data):
         self.pub.publish(Int16MultiArray(data=list(data)))
@@ -158,15 +181,31 @@ class Monitor:
                         rospy.loginfo("All Robots GO!")
                         self.core.start(now)
                         self.wall_zero = time.time()
+                        rospy.set_param("/go_time", float(now))
                         self._send_go(3)
                 elif 0 <= rid < self.n_robots:
                     self._send_go(1)       # a late announcer missed GO
             elif kind == MSG_TARGET_REACHED and len(d) > 2 and self.core.started:
                 self._visit(rid, d[2], now)
+            elif kind == MSG_FAILURE and len(d) > 2 and self.core.started:
+                self._failure(rid, d[2], now)
             elif kind == MSG_INTERFERENCE and self.core.started:
                 self.core.interference(rid, now)
                 rospy.loginfo("Robot %d sent interference (total %d)", rid,
                               self.core.interferences)
+
+    def _failure(self, rid, what, now):
+        """``[id,13,0]``: robot ``rid`` failed; ``[id,13,1]``: it is back."""
+        if not 0 <= rid < self.n_robots:
+            return
+        t = self.core.elapsed(now)
+        if what == 0:
+            self.core.robot_failed(rid, now)
+            rospy.logwarn("[%.1f] robot %d FAILED (scenario); %d robot(s) working", t, rid,
+                          self.n_robots - len(self.core.dead_robots))
+        elif what == 1:
+            self.core.robot_repaired(rid, now)
+            rospy.logwarn("[%.1f] robot %d repaired (scenario)", t, rid)
 
     def _visit(self, rid, v, now):
         r = self.core.visit(rid, v, now)
@@ -212,8 +251,8 @@ class Monitor:
                     if self.timeout > 0 and t >= self.timeout:
                         self._finish("TIMEOUT", now)
                     elif self.dead_timeout > 0:
-                        dead = sorted(rid for rid, last in self.core.last_report.items()
-                                      if t - last > self.dead_timeout)
+                        # a robot failed by the scenario is not dead
+                        dead = sorted(self.core.silent_robots(now, self.dead_timeout))
                         if dead:
                             rospy.logerr("monitor: robot(s) %s sent no visit for %.0f s: FAIL",
                                          ", ".join(map(str, dead)), self.dead_timeout)
@@ -241,8 +280,31 @@ class Monitor:
             # repeat END once and let the last messages go out before the node exits
             time.sleep(0.25)
             self._send(MONITOR_ID, MSG_INIT, END)
-            time.sleep(0.25)
+            time.sleep(0.25)     # the agents' last counters arrive meanwhile
+        self._write_scenario()
         return 0
+
+    def _write_scenario(self):
+        """``<prefix>_scenario.yaml`` (once), when the run has a scenario."""
+        with self.lock:
+            if self.scenario_written or not self.scenario_active:
+                return
+            self.scenario_written = True
+            try:
+                raw = rospy.get_param("/scenario_counters", {})
+            except (ConnectionError, OSError, rospy.ROSException):
+                raw = {}
+            counters = {}
+            for key, value in (raw or {}).items():
+                if str(key).startswith("robot_") and str(key)[6:].isdigit():
+                    counters[int(str(key)[6:])] = dict(value)
+            try:
+                path = scenario.write_scenario(
+                    self.prefix, self.comm_spec, self.attrition_spec, self.schedule,
+                    list(self.core.failures), counters, seed=self.scenario_seed, mode="ros")
+                rospy.loginfo("monitor: scenario file %s written", path)
+            except OSError as e:
+                rospy.logerr("monitor: cannot write %s_scenario.yaml: %s", self.prefix, e)
 
     def _publish_markers(self, now):
         with self.lock:
@@ -304,6 +366,7 @@ class Monitor:
             except Exception:
                 now = self.core.time_zero or 0.0
             self._write_info(rs.INTERRUPTED, now)
+        self._write_scenario()
 
 
 def main(argv=None):

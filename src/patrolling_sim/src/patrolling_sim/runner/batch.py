@@ -16,26 +16,14 @@ A batch file is YAML in one of two shapes:
 """
 import itertools
 
-import yaml
-
 from ..errors import PatrolInputError
+from ..textfile import read_yaml
 from .config import ExperimentConfig
 
 
 def load_batch(path, base=None):
     """Return the list of ExperimentConfig (not yet validated) described by ``path``."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            data = yaml.safe_load(f)
-    except FileNotFoundError:
-        raise PatrolInputError(f"{path}: batch file not found") from None
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        raise PatrolInputError(f"{path}{':%d' % (mark.line + 1) if mark else ''}: invalid YAML") \
-            from None
-    except OSError as e:
-        raise PatrolInputError(f"{path}: cannot read batch file ({e.strerror})") from None
-    return expand_batch(data, path, base)
+    return expand_batch(read_yaml(path, "batch file"), path, base)
 
 
 def expand_batch(data, source="batch", base=None):

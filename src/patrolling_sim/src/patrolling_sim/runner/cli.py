@@ -30,7 +30,7 @@ from .config import ExperimentConfig, from_positional, load_config_file
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
              "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes",
-             "dead_robot_timeout")
+             "dead_robot_timeout", "comm", "attrition")
 BOOL_KEYS = ("rviz", "gui_sim", "record", "force")
 
 
@@ -50,13 +50,22 @@ def build_parser():
     ap.add_argument("--gwait", type=float, help="goal_reached_wait (s)")
     ap.add_argument("--comm-delay", dest="comm_delay", type=float, help="communication delay (s)")
     ap.add_argument("--loss", type=float, help="lost message rate [0, 1)")
+    ap.add_argument("--comm", help="communication model of /results and /positions: perfect "
+                    "(default) | bernoulli:p=P | ge:p_good=..,p_bad=..,to_bad=..,to_good=.. | "
+                    "range:r=M,los=true [;delay=const:S|uniform:A,B|exp:M|normal:M,SD] "
+                    "(docs/scenarios.md)")
+    ap.add_argument("--attrition", help="robot failures: none (default) | 'ROBOT@S[+REPAIR],...' "
+                    "(sim s after GO) | random:rate=PER_ROBOT_HOUR,min_team=K[,repair=S]")
     ap.add_argument("--timeout", type=float, help="sim seconds after GO (0 = none)")
     ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
     ap.add_argument("--speedup", type=float,
                     help="simulator pace > 0 (1 = real time; an upper bound, see the README)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--processes", help="shared (default: agents in one process, each robot's "
-                    "localisation + navigation in one) | separate (one process per node)")
+                    "localisation + navigation in one) | separate (one process per node) | "
+                    "pooled[:K] (agents in one process, navigation of all robots in K "
+                    "nav_host processes) | pooled-separate[:K] (one agent process per robot, "
+                    "navigation pooled)")
     ap.add_argument("--results-dir", dest="results_dir")
     ap.add_argument("--dead-robot-timeout", dest="dead_robot_timeout", type=float,
                     help="sim seconds without a visit before a robot is declared dead "
@@ -154,9 +163,34 @@ def print_summary(outcome, out=safe_print):
         out(f"summary: sim {info[10]} s, real {info[11]} s, cycles {info[21]}, visits "
             f"{info[19]}, idleness avg {idl(info[15])} / max {idl(info[17])}, interferences "
             f"{info[12]} ({info[18]}/min), end {info[13]}")
+    line = scenario_summary(outcome.prefix)
+    if line:
+        out(line)
     out(f"results: {outcome.prefix}_* (status {outcome.status}, in {outcome.prefix}_run.yaml)")
     for f in outcome.files:
         out(f"  {f}")
+
+
+def scenario_summary(prefix):
+    """One line on the run's scenario from ``<prefix>_scenario.yaml`` (None without one):
+    the model, each failure (s after GO) and the messages the receivers judged."""
+    from ..scenario import read_scenario
+    try:
+        doc = read_scenario(prefix)
+    except ValueError as e:
+        return f"scenario: {e}"
+    if not doc:
+        return None
+    fails = ", ".join(
+        f"robot {f['robot']} at {f['t_fail']:g} s" +
+        (f" (back at {f['t_repair']:g} s)" if f.get("t_repair") is not None else "")
+        for f in doc.get("failures") or []) or "none"
+    tot = (doc.get("counters") or {}).get("total") or {}
+    sent = int(tot.get("sent", 0))
+    msgs = (f"; messages sent {sent}, delivered {int(tot.get('delivered', 0))}, lost "
+            f"{int(tot.get('lost', 0))} ({100.0 * int(tot.get('lost', 0)) / sent:.1f} %)"
+            if sent else "")
+    return f"scenario: comm {doc.get('comm')}; failures {fails}{msgs}"
 
 
 def exit_status(returncode):

@@ -18,6 +18,12 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     gwait        goal_reached_wait, s >= 0                           (0)
     comm_delay   communication_delay, s >= 0                         (0)
     loss         lost_message_rate in [0, 1)                         (0)
+    comm         communication model of inter-robot messages (patrolling_sim.comm):
+                 perfect | bernoulli:p=.. | ge:p_good=..,p_bad=..,to_bad=..,to_good=.. |
+                 range:r=..,los=true|false, optionally ;delay=KIND:a[,b]      (perfect)
+    attrition    robot failures (patrolling_sim.attrition): none | "2@600,5@1200[+300]" |
+                 random:rate=..,min_team=..[,repair=..] (seeded by seed)       (none)
+                 see docs/scenarios.md
     timeout      sim seconds after GO; 0 = no timeout                (0)
     cycles       stop after k complete patrol cycles; 0 = no limit   (0)
     speedup      simulator pace (> 0): 1 = real time, 4 = four times faster   (1); an upper
@@ -31,17 +37,21 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     dead_robot_timeout  sim s without a visit report before a robot is declared dead
                  (run status FAIL); 0 = never                        (300, the original's)
     force        run even when the memory estimate exceeds the machine's  (false)
-    processes    shared | separate                                   (shared)
+    processes    shared | separate | pooled[:K] | pooled-separate[:K]  (shared)
                  shared: all agents in one process (patrol_agents) and each robot's
                  localisation + move_base in one process (robot_nav) -- same topics and
                  messages, about half the CPU with many robots; separate: one process per
                  node, as the original (patrol_agent per robot, amcl/fake_localization and
-                 move_base apart)
+                 move_base apart); pooled: agents in one process and the navigation of all
+                 robots in K nav_host processes (default K: 1 up to 8 robots, else 2);
+                 pooled-separate: one agent process per robot (as a real robot runs it),
+                 navigation pooled in K nav_host processes (docs/navigation.md)
 
 ``validate()`` raises :class:`PatrolInputError` with one line naming the key or argument.
 """
 import dataclasses
 import logging
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -55,7 +65,28 @@ log = logging.getLogger(__name__)
 LOC_MODES = ("AMCL", "fake_localization")
 NAV_MODES = ("spqrel_nav_lite", "ros", "abstract")
 NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lite"}
-PROCESS_MODES = ("shared", "separate")
+PROCESS_MODES = ("shared", "separate", "pooled", "pooled-separate")
+
+
+def process_layout(processes, robots):
+    """(agents, nav, hosts) of a ``--processes`` value: agents ``shared`` (one patrol_agents)
+    or ``separate`` (patrol_agent per robot); nav ``robot_nav`` (one per robot), ``separate``
+    (amcl/fake_localization + move_base per robot) or ``pooled`` (``hosts`` nav_host
+    processes). Raises PatrolInputError with one line when the value is bad."""
+    mode, sep, k = str(processes).partition(":")
+    if mode not in PROCESS_MODES or (sep and not mode.startswith("pooled")):
+        raise PatrolInputError(f"argument --processes: must be one of shared, separate, "
+                               f"pooled[:K], pooled-separate[:K], got '{processes}'")
+    if not mode.startswith("pooled"):
+        return mode, ("robot_nav" if mode == "shared" else "separate"), 0
+    if sep:
+        if not k.isdigit() or not 1 <= int(k) <= max(1, robots):
+            raise PatrolInputError(f"argument --processes: K in '{processes}' must be an "
+                                   f"integer from 1 to the number of robots ({robots})")
+        hosts = int(k)
+    else:
+        hosts = 1 if robots <= 8 else 2
+    return ("shared" if mode == "pooled" else "separate"), "pooled", min(hosts, robots)
 
 
 def default_results_dir():
@@ -73,6 +104,8 @@ class ExperimentConfig:
     gwait: float = 0.0
     comm_delay: float = 0.0
     loss: float = 0.0
+    comm: str = "perfect"
+    attrition: str = "none"
     timeout: float = 0.0
     cycles: int = 0
     speedup: float = 1.0
@@ -143,9 +176,11 @@ class ExperimentConfig:
         if self.nav == "abstract" and (self.gui_sim or self.record):
             raise PatrolInputError("argument --nav: the abstract world has no simulator window "
                                    "(drop --gui-sim and --record)")
-        if self.processes not in PROCESS_MODES:
-            raise PatrolInputError(f"argument --processes: must be one of "
-                                   f"{', '.join(PROCESS_MODES)}, got '{self.processes}'")
+        if process_layout(self.processes, self.robots)[1] == "pooled" and self.nav == "ros":
+            raise PatrolInputError(f"argument --processes: '{self.processes}' pools our "
+                                   f"navigation (spqrel_nav_lite) in nav_host processes; the "
+                                   f"ROS packages of --nav ros run one per robot (use shared "
+                                   f"or separate)")
         for name in ("gwait", "comm_delay", "timeout", "record_period", "dead_robot_timeout"):
             if getattr(self, name) < 0:
                 raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be >= 0, "
@@ -156,6 +191,7 @@ class ExperimentConfig:
                 f"pace the agents and the navigation can follow, e.g. 4; see the README)")
         if not 0 <= self.loss < 1:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
+        self.scenario()                     # one-line errors for --comm / --attrition
         if self.cycles < 0:
             raise PatrolInputError(f"argument --cycles: must be >= 0, got {self.cycles}")
         if self.record and self.record_period <= 0:
@@ -180,6 +216,19 @@ class ExperimentConfig:
                 env = None
             validation.check_ros_navigation(self.loc, env)
         return self
+
+    def scenario(self):
+        """(communication model, failure schedule) of this run, from ``comm`` and
+        ``attrition`` (the random attrition model is drawn from ``seed`` over ``timeout``).
+
+        Raises PatrolInputError (one line naming --comm or --attrition)."""
+        from ..scenario import check_scenario
+        self.comm = str(self.comm or "perfect").strip() or "perfect"
+        self.attrition = str(self.attrition or "none").strip() or "none"
+        return check_scenario(self.comm, self.attrition, self.robots or 0,
+                              duration=self.timeout if self.timeout > 0 else math.inf,
+                              seed=self.seed, what_comm="argument --comm",
+                              what_attr="argument --attrition")
 
     def start_positions(self):
         """[(x, y)] for the team (table entry or computed); validates the team size."""

@@ -42,13 +42,18 @@ class LauncherApp:
         ("comm_delay", "Comm. delay (s)", "combo", ["0", "0.2", "1"]),
         ("speedup", "Speed-up", "combo", ["1", "2", "4", "8"]),
         ("timeout", "Timeout (sim s)", "combo", ["0", "300", "600", "1800"]),
+        # scenario (docs/scenarios.md): any --comm / --attrition spec can be typed in
+        ("comm", "Communication", "combo", ["perfect", "bernoulli:p=0.1",
+                                            "ge:p_good=0,p_bad=0.8,to_bad=0.05,to_good=0.5",
+                                            "range:r=10,los=true"]),
+        ("attrition", "Failures", "combo", ["none", "1@300", "1@300+300",
+                                            "random:rate=0.5,min_team=2"]),
     ]
 
     def __init__(self, root, script, initial=None):
         import tkinter as tk
         from tkinter import ttk
         from ..algorithms import REGISTRY
-        self.tk, self.ttk = tk, ttk
         self.root = root
         self.script = script
         self.proc = None

@@ -5,13 +5,19 @@ the results folder (``<prefix>_experiment.launch``) so that the run can be repro
 plain ``roslaunch``. The file composes:
 
 - global parameters (``/use_sim_time``, ``/goal_reached_wait``, ``/communication_delay``,
-  ``/lost_message_rate``, ``/navigation_module``, ``/initial_positions``, ``/initial_pos``),
+  ``/lost_message_rate``, ``/navigation_module``, ``/initial_positions``, ``/initial_pos``,
+  and the scenario: ``/comm_model`` (communication model spec), ``/attrition`` (the explicit
+  failure schedule ``ROBOT@T[+REPAIR],...``, the random model already drawn from the seed),
+  ``/scenario_seed``; docs/scenarios.md),
 - the simulator (``patrol_stage2d/launch/stage2d.launch``),
 - one map server (``spqrel_nav_lite`` map_server publishing ``/map``),
 - per robot ``launch/robot.launch`` (localisation + navigation in namespace ``robot_i``; with
-  ``processes: shared`` both in one ``robot_nav`` process),
-- the monitor and the N agents (``processes: shared``: one ``patrol_agents`` process hosting
-  all of them; ``separate``: one ``patrol_agent`` node per robot, as the original),
+  ``processes: shared`` both in one ``robot_nav`` process; with ``pooled[:K]`` and
+  ``pooled-separate[:K]`` only the robot's parameters, its navigation being hosted by one of
+  K ``nav_host`` processes, see :func:`_nav_hosts`),
+- the monitor and the N agents (``processes: shared`` or ``pooled``: one ``patrol_agents``
+  process hosting all of them; ``separate`` or ``pooled-separate``: one ``patrol_agent`` node
+  per robot, as the original),
 - optionally rviz with ``launch/patrol.rviz``.
 
 With ``nav: abstract`` the simulator, map server and per-robot navigation are replaced by
@@ -23,6 +29,7 @@ from xml.sax.saxutils import quoteattr
 
 from .. import paths
 from ..graph import load_graph
+from .config import process_layout
 
 
 #: ``nav`` value of the abstract world: no simulator, map server, localisation or move_base;
@@ -42,7 +49,33 @@ def _abstract_world(a, cfg, n):
       'required="true" output="log">')
     a(f'    <param name="team_size" value="{n}"/>')
     a(f'    <param name="speedup" value="{_num(cfg.speedup)}"/>')
+    if cfg.scenario()[0].name == "range":
+        # the range model judges links from the robots' poses on /positions, which the
+        # agents publish from move_base feedback
+        a('    <param name="feedback" value="true"/>')
     a("  </node>")
+    a("")
+
+
+def _nav_hosts(a, cfg, n, hosts, yaml_path, n_vertices):
+    """``hosts`` nav_host processes, each hosting the localiser + move_base of a contiguous
+    block of robots (sizes differ by at most one). They run in namespace ``/nav_pool`` whose
+    ``actionlib_status_frequency`` matches the per-robot nodes' (1 Hz); their plan caches
+    hold a navigation function for every vertex of the patrol graph (the patrol goals)."""
+    a("  <!-- navigation: localiser + move_base of every robot in nav_host processes (each")
+    a("       robot keeps its robot_i topics, move_base action, services, frames, params) -->")
+    a('  <group ns="nav_pool">')
+    a('    <param name="actionlib_status_frequency" value="1.0"/>')
+    for k in range(hosts):
+        lo, hi = k * n // hosts, (k + 1) * n // hosts
+        robots = " ".join(f"robot_{i}" for i in range(lo, hi))
+        a(f'    <node pkg="spqrel_nav_lite" type="nav_host" name="nav_host_{k}" output="log">')
+        a(f"      <param name=\"robots\" value={_attr(robots)}/>")
+        a(f"      <param name=\"localization\" value={_attr(cfg.loc)}/>")
+        a(f"      <param name=\"map_yaml\" value={_attr(yaml_path)}/>")
+        a(f"      <param name=\"plan_cache_goals\" value=\"{int(n_vertices)}\"/>")
+        a("    </node>")
+    a("  </group>")
     a("")
 
 
@@ -62,6 +95,18 @@ def graph_drawing(graph_path):
     return xy, " ".join(f"{u} {w}" for u, w in edges)
 
 
+def scenario_params(cfg):
+    """The scenario's global ROS parameters: ``/comm_model`` (the model's canonical spec),
+    ``/attrition`` (explicit schedule, so every node fails the same robots at the same
+    times), ``/scenario_seed``."""
+    model, schedule = cfg.scenario()
+    # repr: the times round-trip exactly (a drawn random time has more digits than %g keeps)
+    explicit = ",".join(f"{f.robot}@{f.t!r}" + (f"+{f.repair!r}" if f.repair is not None
+                                                  else "") for f in schedule) or "none"
+    return {"/comm_model": model.describe(), "/attrition": explicit,
+            "/scenario_seed": int(cfg.seed)}
+
+
 def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi / 2,
                     rviz_config=None):
     """Return the launch XML (str) for ``cfg`` with robots at ``positions`` [(x, y)].
@@ -75,6 +120,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
         rviz_config: rviz config file for ``cfg.rviz`` (default ``launch/patrol.rviz``).
     """
     root = paths.data_root()
+    agents, nav_mode, hosts = process_layout(cfg.processes, cfg.robots)
     yaml_path, graph_path = (os.path.abspath(p) for p in paths.map_files(cfg.map))
     n = cfg.robots
     poses = " ".join(f"{x:.4f} {y:.4f} {yaw:.4f}" for x, y in positions)
@@ -90,6 +136,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'  <param name="/communication_delay" value="{_num(cfg.comm_delay)}"/>')
     a(f'  <param name="/lost_message_rate" value="{_num(cfg.loss)}"/>')
     a(f'  <param name="/navigation_module" value={_attr(cfg.nav)}/>')
+    for name, value in scenario_params(cfg).items():
+        kind = "str" if isinstance(value, str) else "int"
+        a(f'  <param name="{name}" type="{kind}" value={_attr(value)}/>')
     a(f'  <param name="/localization_module" value={_attr(cfg.loc)}/>')
     a(f'  <param name="/initial_positions" value={_attr(cfg.initpos)}/>')
     a(f'  <rosparam param="/initial_pos">[{flat}]</rosparam>')
@@ -125,9 +174,13 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
             a(f'    <arg name="yaw" value="{yaw:.4f}"/>')
             a(f'    <arg name="localization" value={_attr(cfg.loc)}/>')
             a(f'    <arg name="navigation" value={_attr(cfg.nav)}/>')
-            a(f'    <arg name="combined" value="{str(cfg.processes == "shared").lower()}"/>')
+            a(f'    <arg name="combined" value="{str(nav_mode == "robot_nav").lower()}"/>')
+            if nav_mode == "pooled":
+                a('    <arg name="nav_nodes" value="false"/>')
             a("  </include>")
         a("")
+        if nav_mode == "pooled" and cfg.nav != "ros":
+            _nav_hosts(a, cfg, n, hosts, yaml_path, len(graph_xy.split()) // 2)
     a("  <!-- monitor: ends the run (timeout / cycles / dead robot / abort); required, so")
     a("       roslaunch shuts everything down when it exits after writing its files -->")
     a('  <node pkg="patrolling_sim" type="monitor" name="monitor" required="true" output="log"')
@@ -139,8 +192,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     a(f'    <param name="cycles" value="{int(cfg.cycles)}"/>')
     a(f'    <param name="dead_robot_timeout" value="{_num(cfg.dead_robot_timeout)}"/>')
     a(f'    <param name="map_label" value={_attr(cfg.result_name)}/>')
+    a(f'    <param name="attrition_spec" type="str" value={_attr(cfg.attrition)}/>')
     a("  </node>")
-    if cfg.processes == "shared":
+    if agents == "shared":
         # every agent in one process: the same PatrolAgent objects and topics, but each
         # /positions and /results message is received once instead of N times
         a('  <node pkg="patrolling_sim" type="patrol_agents" name="patrol_agents" '

@@ -27,23 +27,23 @@ Sequence of :meth:`Experiment.run`:
 Exit codes (:func:`patrolling_sim.run_status.exit_code_for`): 0 normal end (TIMEOUT,
 CYCLES, STOPPED), 1 FAIL or ABORTED, 3 CRASHED, 130 SIGINT, 143 SIGTERM.
 """
-import glob
 import os
 import signal
-import socket
 import subprocess
-import sys
 import threading
 import time
-import xmlrpc.client
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from .. import paths, run_status as rs
-from ..errors import PatrolInputError
+from .. import run_status as rs
+from ..results import claim_prefix as _claim, default_prefix
 from ..run_status import NORMAL_ENDS  # noqa: F401 - re-exported (GUI, tests)
 from .launchgen import generate_launch, status_topic
+from .outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,  # noqa: F401
+                      missing_files, read_info, signal_name, summary, timing)
 from .proctree import ProcessTree
+from .roslaunch_log import RoslaunchLog, describe_node, is_monitor  # noqa: F401 - re-exported
 from .rosenv import experiment_env, free_port
+from .watch import RosWatcher, master_up, progress_line, read_progress  # noqa: F401
 
 
 def _terminate_with_parent(parent_pid):
@@ -60,266 +60,36 @@ def _terminate_with_parent(parent_pid):
             os.kill(os.getpid(), signal.SIGTERM)
     return setup
 
-RESULT_SUFFIXES = ("idleness.csv", "timeresults.csv", "results.txt", "info.csv")
+
+def claim_prefix(cfg, stamp=None):
+    """Create the run folder and claim a unique prefix
+    ``<results>/<map>_<N>/<ALG>/<host>/<stamp>[_k]`` by creating ``<prefix>_config.yaml``
+    exclusively (safe against parallel runners) with the configuration in it."""
+    return _claim(default_prefix(os.path.abspath(cfg.results_dir), cfg.result_name,
+                                 cfg.robots, cfg.alg, stamp=stamp),
+                  "_config.yaml", cfg.to_yaml())
 
 
 @dataclass
-class Outcome:
-    exit_code: int
-    reason: str
-    prefix: str = ""
-    files: list = field(default_factory=list)
-    sim_time: float = 0.0
-    wall_time: float = 0.0
-    go_wall: float = None      # wall seconds from launch to GO
-    status: str = ""           # run_status.STATUSES
-    record: dict = field(default_factory=dict)   # the content of <prefix>_run.yaml
+class _Run:
+    """What the supervisor knows about the run in progress."""
+    t_start: float
+    proc: subprocess.Popen = None
+    tree: ProcessTree = None
+    log: RoslaunchLog = None
+    watcher: RosWatcher = None
+    abort_reason: str = None     # the runner's own reason to end the run (ABORTED)
+    crash: dict = None           # the first node death that ends the run (CRASHED)
+    go_wall: float = None        # wall s from launch to GO
+    clean_exit_at: tuple = None  # (wall time, death) of a node that exited with code 0
+    last_print: float = 0.0
+    last_clock: tuple = None     # (sim time, wall time) of the last sim-time progress
+    last_refresh: float = 0.0
 
-
-def hostname():
-    try:
-        return socket.gethostname() or "default"
-    except OSError:
-        return "default"
-
-
-def claim_prefix(cfg, stamp=None):
-    """Create the run folder and claim a unique prefix by creating ``<prefix>_config.yaml``
-    exclusively (safe against parallel runners). Returns the prefix."""
-    folder = os.path.join(os.path.abspath(cfg.results_dir), f"{cfg.result_name}_{cfg.robots}",
-                          cfg.alg, hostname())
-    os.makedirs(folder, exist_ok=True)
-    stamp = stamp or time.strftime("%Y%m%d_%H%M%S")
-    for k in range(1000):
-        prefix = os.path.join(folder, stamp if k == 0 else f"{stamp}_{k}")
-        try:
-            fd = os.open(prefix + "_config.yaml", os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            continue
-        with os.fdopen(fd, "w") as f:
-            f.write(cfg.to_yaml())
-        return prefix
-    raise PatrolInputError(f"argument --results-dir: cannot create a unique run prefix in {folder}")
-
-
-def read_progress(prefix):
-    """(complete cycles, average idleness or None) from the monitor's files."""
-    cycles = 0
-    try:
-        with open(prefix + "_results.txt", encoding="utf-8") as f:
-            for line in f:
-                if line.startswith("Complete Patrol Cycles:"):
-                    cycles = int(line.split("\t")[-1])
-    except (OSError, ValueError):
-        pass
-    total = n = 0
-    try:
-        with open(prefix + "_idleness.csv", encoding="utf-8") as f:
-            next(f, None)
-            for line in f:
-                parts = line.split(";")
-                if len(parts) >= 4:
-                    try:
-                        total += float(parts[3])
-                        n += 1
-                    except ValueError:
-                        pass
-    except OSError:
-        pass
-    return cycles, (total / n if n else None)
-
-
-def read_info(prefix):
-    """Fields of ``<prefix>_info.csv`` (list of str) or None."""
-    try:
-        with open(prefix + "_info.csv", encoding="utf-8") as f:
-            line = f.readline().strip()
-    except OSError:
-        return None
-    return line.split(";") if line else None
-
-
-class _RosWatcher:
-    """Follows the experiment from this process: the simulator's status (sim time and
-    achieved real-time factor, every 2 s wall; cheaper than /clock at every step) and
-    /results (GO, visits)."""
-
-    def __init__(self, master_uri, status="/stage2d/status"):
-        os.environ["ROS_MASTER_URI"] = master_uri
-        os.environ["ROS_IP"] = "127.0.0.1"
-        import rospy
-        from std_msgs.msg import Int16MultiArray, String
-        self.rospy = rospy
-        self.sim_time = 0.0
-        self.rtf = None
-        self.go = False
-        self.sim_at_go = None
-        self.end = False
-        self.visits = 0
-        self._reports = 0
-        self._vertices = set()
-        self.ready = set()
-        rospy.init_node(f"experiment_runner_{os.getpid()}", anonymous=False,
-                        disable_signals=True, disable_rosout=False)
-        rospy.Subscriber(status, String, self._status, queue_size=1)
-        rospy.Subscriber("/results", Int16MultiArray, self._results, queue_size=100)
-
-    def _status(self, msg):
-        import json
-        try:
-            st = json.loads(msg.data)
-            self.sim_time = float(st["sim_time"])
-            self.rtf = float(st["rtf"])
-        except (ValueError, KeyError, TypeError):
-            pass
-
-    def _results(self, msg):
-        d = list(msg.data)
-        if len(d) >= 3 and d[1] == 10:
-            if d[0] == -1 and d[2] == 100:
-                if not self.go:
-                    self.sim_at_go = self.sim_time
-                self.go = True
-            elif d[0] == -1 and d[2] == 999:
-                self.end = True
-            elif d[0] >= 0:
-                self.ready.add(d[0])
-        elif len(d) >= 3 and d[1] == 11 and self.go:
-            # counted as the monitor counts them: a vertex's first report (the start
-            # vertex, usually) is not a visit (its counter starts at -1)
-            self._reports += 1
-            self._vertices.add(d[2])
-            self.visits = self._reports - len(self._vertices)
-
-    def close(self):
-        try:
-            self.rospy.signal_shutdown("experiment finished")
-        except Exception:   # noqa: BLE001 - best effort at exit
-            pass
-
-
-def _master_up(uri, timeout, stop=lambda: False):
-    proxy = xmlrpc.client.ServerProxy(uri)
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and not stop():
-        try:
-            code, _, _ = proxy.getSystemState("/experiment_runner")
-            if code == 1:
-                return True
-        except OSError:
-            pass
-        time.sleep(0.2)
-    return False
-
-
-
-
-_ANSI = None
-
-
-def _strip_ansi(line):
-    global _ANSI
-    if _ANSI is None:
-        import re
-        _ANSI = re.compile(r"\x1b\[[0-9;]*m")
-    return _ANSI.sub("", line)
-
-
-def describe_node(node):
-    """(description, robot id or None) of a roslaunch process name such as
-    ``robot_0/robot_nav-5``, ``stage2d-2``, ``patrol_robot1-9``, ``master``."""
-    import re
-    name = re.sub(r"-\d+$", "", node.strip("/"))
-    m = re.match(r"robot_(\d+)/(.+)$", name)
-    if m:
-        rid = int(m.group(1))
-        return f"robot {rid}'s navigation ({name})", rid
-    m = re.match(r"patrol_robot(\d+)$", name)
-    if m:
-        rid = int(m.group(1))
-        return f"robot {rid}'s agent ({name})", rid
-    known = {"master": "the ROS master (rosmaster)", "stage2d": "the simulator (stage2d)",
-             "monitor": "the monitor", "map_server": "the map server (map_server)",
-             "patrol_agents": "the agents (patrol_agents)", "rviz": "rviz"}
-    return known.get(name, f"node {name}"), None
-
-
-class RoslaunchLog:
-    """Follows roslaunch's output file and collects the deaths it reports:
-    dicts ``{node, exit_code, log, required, launch_error}`` in order."""
-
-    def __init__(self, path):
-        self.path = path
-        self.pos = 0
-        self.partial = ""
-        self.deaths = []
-        self._pending = None        # REQUIRED process [x] has died! -> next line has the code
-
-    def poll(self):
-        try:
-            with open(self.path, encoding="utf-8", errors="replace") as f:
-                f.seek(self.pos)
-                data = f.read()
-                self.pos = f.tell()
-        except OSError:
-            return []
-        if not data:
-            return []
-        text = self.partial + data
-        lines = text.split("\n")
-        self.partial = lines.pop()
-        new = []
-        for line in lines:
-            d = self._line(_strip_ansi(line).strip())
-            if d is not None:
-                self.deaths.append(d)
-                new.append(d)
-        return new
-
-    def _line(self, line):
-        import re
-        m = re.search(r"REQUIRED process \[([^\]]+)\] has died!", line)
-        if m:
-            self._pending = {"node": m.group(1), "exit_code": None, "log": None,
-                             "required": True, "launch_error": False}
-            return None
-        if self._pending is not None:
-            d = self._pending
-            m = re.search(r"exit code (-?\d+)", line)
-            if m:
-                d["exit_code"] = int(m.group(1))
-                return None
-            if "finished cleanly" in line:
-                d["exit_code"] = 0
-                return None
-            if line.startswith("log file:"):
-                d["log"] = line[len("log file:"):].strip()
-                return None
-            if "without exit code" in line:
-                return None
-            self._pending = None
-            return d
-        m = re.match(r"\[([^\]]+)\] process has (died|finished cleanly)(.*)$", line)
-        if m:
-            code = re.search(r"exit code (-?\d+)", m.group(3))
-            d = {"node": m.group(1), "exit_code": int(code.group(1)) if code else
-                 (0 if m.group(2) == "finished cleanly" else None), "log": None,
-                 "required": False, "launch_error": False}
-            self._last = d
-            return d
-        if line.startswith("log file:") and self.deaths:
-            self.deaths[-1]["log"] = line[len("log file:"):].strip()
-            return None
-        m = re.search(r"cannot launch node of type \[([^\]]+)\]", line)
-        if m:
-            return {"node": m.group(1), "exit_code": None, "log": None, "required": False,
-                    "launch_error": True, "message": line}
-        return None
-
-
-def _signal_name(reason):
-    return reason if reason in ("SIGINT", "SIGTERM") else None
-
+    @property
+    def ended(self):
+        """The monitor announced the run's END."""
+        return self.watcher is not None and self.watcher.end
 
 class Experiment:
     """One experiment run. ``out`` receives the progress/status lines."""
@@ -383,114 +153,123 @@ class Experiment:
     def run(self):
         """Run and supervise; always returns an Outcome (the status is recorded in the
         files). A stop request (signal) at any moment ends the run within seconds."""
-        cfg = self.cfg
-        t_start = time.monotonic()
+        run = _Run(t_start=time.monotonic())
         self.prepare()
         if self._stop_requested():
-            return self._finalise(t_start, None, None, None, None)
-        port = free_port()
-        env = experiment_env(port, self.log_dir)
-        uri = env["ROS_MASTER_URI"]
-        self.out(f"experiment: {cfg.map_name}, {cfg.robots} robots, {cfg.alg}, {cfg.loc}, "
-                 f"{cfg.nav}; master {uri}; results {self.prefix}_*")
-        log_path = os.path.join(self.log_dir, "roslaunch.log")
-        log = open(log_path, "w")
-        proc = subprocess.Popen(["roslaunch", "-p", str(port), "--skip-log-check",
-                                 self.launch_path], env=env, stdout=log, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, start_new_session=True,
-                                cwd=self.log_dir, preexec_fn=_terminate_with_parent(os.getpid()))
-        tree = ProcessTree(proc.pid)
-        rl = RoslaunchLog(log_path)
-        watcher = None
-        abort_reason = None      # the runner's own reason to end the run (ABORTED)
-        crash = None             # the first node death that ends the run (CRASHED)
-        go_wall = None
-        clean_exit_at = None
+            return self._finalise(run)
+        log_file = self._start_roslaunch(run)
         try:
-            if not _master_up(uri, 30, self._stop_requested):
-                if not self._stop_requested():
-                    abort_reason = "the ROS master did not come up within 30 s"
-            elif not self._stop_requested():
-                watcher = _RosWatcher(uri, status_topic(cfg))
-            last_print = 0.0
-            last_clock = (0.0, time.monotonic())
-            limit = self.wall_limit()
-            last_refresh = 0.0
-            while abort_reason is None and crash is None:
-                now = time.monotonic()
-                if now - last_refresh >= 2.0:   # remember our descendants (reads all of /proc)
-                    tree.refresh()
-                    last_refresh = now
-                if self._stop_requested():
-                    break
-                ended = watcher is not None and watcher.end
-                for d in rl.poll():
-                    desc, _ = describe_node(d["node"])
-                    if d["launch_error"]:
-                        crash = d
-                    elif desc == "the monitor" and d["exit_code"] == 0:
-                        pass                    # the monitor ended the run itself
-                    elif ended:
-                        pass                    # the run is over: nodes exit after END
-                    elif d["exit_code"] == 0 and not d["required"]:
-                        clean_exit_at = clean_exit_at or (now, d)
-                    else:
-                        crash = d
-                    if crash:
-                        break
-                if crash is not None:
-                    break
-                if clean_exit_at is not None and not ended and \
-                        now - clean_exit_at[0] > self.CLEAN_EXIT_GRACE:
-                    crash = clean_exit_at[1]     # exited cleanly, but before the run's end
-                    break
-                if proc.poll() is not None:
-                    rl.poll()
-                    break
-                if watcher is not None:
-                    if watcher.go and go_wall is None:
-                        go_wall = now - t_start
-                        self.out(f"GO after {go_wall:.1f} s (wall)")
-                    if not watcher.go and now - t_start > self.GO_TIMEOUT:
-                        abort_reason = (f"no GO from the monitor within {self.GO_TIMEOUT:.0f} s "
-                                        f"({len(watcher.ready)}/{cfg.robots} robots ready)")
-                        break
-                    if watcher.sim_time > last_clock[0]:
-                        last_clock = (watcher.sim_time, now)
-                    elif watcher.go and now - last_clock[1] > self.STALL_TIMEOUT:
-                        abort_reason = f"simulated time stalled for {self.STALL_TIMEOUT:.0f} s"
-                        break
-                    if now - last_print >= self.progress_period:
-                        last_print = now
-                        cycles, avg = read_progress(self.prefix)
-                        avg_s = f"{avg:.1f} s" if avg is not None else "-"
-                        rtf_s = f"{watcher.rtf:.2f}x" if watcher.rtf else "-"
-                        self.out(f"progress: sim {watcher.sim_time:.1f} s | go "
-                                 f"{'yes' if watcher.go else 'no'} | cycles {cycles} | "
-                                 f"avg idleness {avg_s} | visits {watcher.visits} | "
-                                 f"pace {rtf_s}")
-                if limit and now - t_start > limit:
-                    abort_reason = f"wall-clock limit of {limit:.0f} s exceeded"
-                    break
-                time.sleep(0.25)
+            self._connect(run)
+            if run.abort_reason is None:
+                self._supervise(run)
         except KeyboardInterrupt:
             self.request_stop("SIGINT")
         finally:
-            self._shutdown(proc, tree)
-            if watcher is not None:
-                watcher.close()
-            log.close()
-        if crash is None and not self._stop_requested():
-            for d in rl.poll() + rl.deaths:     # a death roslaunch reported as it ended
-                desc, _ = describe_node(d["node"])
-                if d["launch_error"] or (desc != "the monitor" and d["exit_code"] not in (0, None)
-                                         and not (watcher and watcher.end)):
-                    crash = d
-                    break
-                if desc == "the monitor" and d["exit_code"] not in (0, None):
-                    crash = d
-                    break
-        return self._finalise(t_start, watcher, go_wall, abort_reason, crash)
+            self._shutdown(run.proc, run.tree)
+            if run.watcher is not None:
+                run.watcher.close()
+            log_file.close()
+        if run.crash is None and not self._stop_requested():
+            # a death roslaunch reported as it ended
+            run.crash = late_crash(run.log.poll() + run.log.deaths, run.ended)
+        return self._finalise(run)
+
+    # -- the steps of run() -------------------------------------------------------------
+
+    def _start_roslaunch(self, run):
+        """Start ``roslaunch -p PORT`` (own master on a free port) in a new session, its
+        output in ``<prefix>_logs/roslaunch.log``; returns that open log file."""
+        cfg = self.cfg
+        port = free_port()
+        env = experiment_env(port, self.log_dir)
+        self.master_uri = env["ROS_MASTER_URI"]
+        self.out(f"experiment: {cfg.map_name}, {cfg.robots} robots, {cfg.alg}, {cfg.loc}, "
+                 f"{cfg.nav}; master {self.master_uri}; results {self.prefix}_*")
+        log_path = os.path.join(self.log_dir, "roslaunch.log")
+        log_file = open(log_path, "w")
+        run.proc = subprocess.Popen(
+            ["roslaunch", "-p", str(port), "--skip-log-check", self.launch_path], env=env,
+            stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+            start_new_session=True, cwd=self.log_dir,
+            preexec_fn=_terminate_with_parent(os.getpid()))
+        run.tree = ProcessTree(run.proc.pid)
+        run.log = RoslaunchLog(log_path)
+        return log_file
+
+    def _connect(self, run):
+        """Wait for the master, then follow the run's topics."""
+        if not master_up(self.master_uri, 30, self._stop_requested):
+            if not self._stop_requested():
+                run.abort_reason = "the ROS master did not come up within 30 s"
+        elif not self._stop_requested():
+            run.watcher = RosWatcher(self.master_uri, status_topic(self.cfg))
+        run.last_clock = (0.0, time.monotonic())
+
+    def _supervise(self, run):
+        """Poll four times a second until something ends the run: a stop request, a node's
+        death, roslaunch's end, or one of the runner's own limits."""
+        limit = self.wall_limit()
+        while True:
+            now = time.monotonic()
+            if now - run.last_refresh >= 2.0:   # remember our descendants (reads all of /proc)
+                run.tree.refresh()
+                run.last_refresh = now
+            if self._stop_requested() or self._node_deaths(run, now):
+                return
+            if run.proc.poll() is not None:
+                run.log.poll()
+                return
+            if run.watcher is not None and self._follow_progress(run, now):
+                return
+            if limit and now - run.t_start > limit:
+                run.abort_reason = f"wall-clock limit of {limit:.0f} s exceeded"
+                return
+            time.sleep(0.25)
+
+    def _node_deaths(self, run, now):
+        """Read roslaunch's new death reports; True (``run.crash`` set) if one ends the run.
+        The monitor's clean exit and exits after END are the run's normal end; a clean exit
+        of another node before END is a crash once CLEAN_EXIT_GRACE has passed."""
+        ended = run.ended
+        for d in run.log.poll():
+            if d["launch_error"]:
+                run.crash = d
+            elif is_monitor(d) and d["exit_code"] == 0:
+                pass                    # the monitor ended the run itself
+            elif ended:
+                pass                    # the run is over: nodes exit after END
+            elif d["exit_code"] == 0 and not d["required"]:
+                run.clean_exit_at = run.clean_exit_at or (now, d)
+            else:
+                run.crash = d
+            if run.crash:
+                return True
+        if run.clean_exit_at is not None and not ended and \
+                now - run.clean_exit_at[0] > self.CLEAN_EXIT_GRACE:
+            run.crash = run.clean_exit_at[1]     # exited cleanly, but before the run's end
+            return True
+        return False
+
+    def _follow_progress(self, run, now):
+        """GO, sim-time progress and the progress line; True (``run.abort_reason`` set) if
+        GO does not come or sim time stalls."""
+        w = run.watcher
+        if w.go and run.go_wall is None:
+            run.go_wall = now - run.t_start
+            self.out(f"GO after {run.go_wall:.1f} s (wall)")
+        if not w.go and now - run.t_start > self.GO_TIMEOUT:
+            run.abort_reason = (f"no GO from the monitor within {self.GO_TIMEOUT:.0f} s "
+                                f"({len(w.ready)}/{self.cfg.robots} robots ready)")
+            return True
+        if w.sim_time > run.last_clock[0]:
+            run.last_clock = (w.sim_time, now)
+        elif w.go and now - run.last_clock[1] > self.STALL_TIMEOUT:
+            run.abort_reason = f"simulated time stalled for {self.STALL_TIMEOUT:.0f} s"
+            return True
+        if now - run.last_print >= self.progress_period:
+            run.last_print = now
+            self.out(progress_line(w, self.prefix))
+        return False
 
     def _shutdown(self, proc, tree):
         """Orderly shutdown: SIGINT to roslaunch, which stops the nodes (the monitor writes
@@ -505,7 +284,7 @@ class Experiment:
             first = self._stop_requested()
             # a user's signal: stop within 10 s (the monitor writes its files on the first
             # SIGINT at once); otherwise give roslaunch time for an orderly shutdown
-            deadline = time.monotonic() + (6 if _signal_name(first) else 20)
+            deadline = time.monotonic() + (6 if signal_name(first) else 20)
             while proc.poll() is None and time.monotonic() < deadline:
                 try:
                     time.sleep(0.2)
@@ -516,7 +295,7 @@ class Experiment:
                 if first is None and self._stop_requested():
                     first = self._stop_requested()
                     deadline = min(deadline, time.monotonic() + 6)  # stop within 10 s
-        hard = tree.stop(grace=1.0 if _signal_name(self._stop_requested()) else 3.0)
+        hard = tree.stop(grace=1.0 if signal_name(self._stop_requested()) else 3.0)
         if hard:
             self.out(f"warning: killed {len(hard)} process(es) that ignored SIGINT/SIGTERM")
         try:
@@ -524,84 +303,30 @@ class Experiment:
         except subprocess.TimeoutExpired:
             pass
 
-    def _finalise(self, t_start, watcher, go_wall, abort_reason, crash):
-        """Decide the status, record it in info.csv and <prefix>_run.yaml, build the Outcome."""
+    def _finalise(self, run):
+        """Decide the status (:mod:`.outcome`), record it in info.csv and
+        ``<prefix>_run.yaml``, build the Outcome."""
         cfg = self.cfg
-        wall = time.monotonic() - t_start
-        files = [self.prefix + "_" + s for s in RESULT_SUFFIXES]
+        wall = time.monotonic() - run.t_start
         info = read_info(self.prefix)
-        mon = rs.read_run_yaml(self.prefix) or {}
         stop = self._stop_requested()
-        sig = _signal_name(stop)
-        record = {"status": None, "reason": "", "culprit": None, "robots": [], "signal": None}
-        monitor_status = rs.normalise(info[13]) if info and len(info) > 13 else None
-        if monitor_status == rs.INTERRUPTED:
-            monitor_status = None       # the monitor was stopped from outside: not its verdict
-        if sig:
-            record.update(status=rs.INTERRUPTED, signal=sig,
-                          reason=f"interrupted by {sig}")
-        elif stop:
-            record.update(status=rs.ABORTED, reason=stop)
-        elif crash is not None:
-            desc, rid = describe_node(crash["node"])
-            code = crash["exit_code"]
-            if crash["launch_error"]:
-                why = f"roslaunch could not start {desc} ({crash.get('message', '')})"
-            else:
-                why = (f"{desc} died (exit {code})" if code not in (0, None) else
-                       f"{desc} exited before the end of the run" if code == 0 else
-                       f"{desc} died")
-            record.update(status=rs.CRASHED, reason=why, culprit={
-                "node": crash["node"], "description": desc, "robot": rid, "exit_code": code,
-                "log": crash["log"], "log_tail": rs.log_tail(crash["log"]) if crash["log"]
-                else []})
-        elif abort_reason:
-            record.update(status=rs.ABORTED, reason=abort_reason)
-        elif info is None:
-            record.update(status=rs.CRASHED, reason="the monitor ended without writing "
-                          "info.csv (see the logs)", culprit={"node": "monitor",
-                                                              "description": "the monitor",
-                                                              "robot": None, "exit_code": None,
-                                                              "log": None, "log_tail": []})
-        elif monitor_status:
-            record.update(status=monitor_status, reason=mon.get("reason") or
-                          f"ended: {monitor_status}", robots=mon.get("robots") or [])
-        else:
-            record.update(status=rs.CRASHED, reason="roslaunch ended the run without a node "
-                          "reporting its death (see roslaunch.log)",
-                          culprit={"node": "roslaunch", "description": "roslaunch",
-                                   "robot": None, "exit_code": None, "log": None,
-                                   "log_tail": []})
+        record = decide_status(stop, run.crash, run.abort_reason, info,
+                               rs.read_run_yaml(self.prefix) or {})
         status = record["status"]
-        code = rs.exit_code_for(status, sig)
-        missing = [os.path.basename(f) for f in files if not os.path.isfile(f)]
+        code = rs.exit_code_for(status, signal_name(stop))
+        missing = missing_files(self.prefix)
         if missing and code == rs.EXIT_OK:
             status, code = rs.ABORTED, rs.EXIT_FAILED
             record.update(status=status, reason=f"missing result files: {', '.join(missing)}")
         if info is not None:
             rs.set_info_status(self.prefix, status)
-        sim = None
-        if info is not None and len(info) > 10:
-            try:
-                sim = float(info[10])
-            except ValueError:
-                sim = None
-        if sim is None and watcher is not None and watcher.sim_at_go is not None:
-            sim = max(0.0, watcher.sim_time - watcher.sim_at_go)
-        real = None         # wall seconds since GO: the monitor's own figure if it wrote one
-        if info is not None and len(info) > 11:
-            try:
-                real = float(info[11])
-            except ValueError:
-                real = None
-        if not real and go_wall is not None:
-            real = wall - go_wall
-        pace = sim / real if sim and real and real > 0 else None
+        sim, _, pace = timing(info, run.watcher, run.go_wall, wall)
         record.update(
             sim_time=round(sim, 1) if sim is not None else 0.0,
-            wall_time=round(wall, 1), go_after=round(go_wall, 1) if go_wall is not None
-            else None, pace=round(pace, 2) if pace else None, exit_code=code,
-            files_complete=not missing and info is not None, missing_files=missing,
+            wall_time=round(wall, 1), go_after=round(run.go_wall, 1)
+            if run.go_wall is not None else None, pace=round(pace, 2) if pace else None,
+            exit_code=code, files_complete=not missing and info is not None,
+            missing_files=missing,
             requested={"timeout": cfg.timeout, "cycles": cfg.cycles,
                        "dead_robot_timeout": cfg.dead_robot_timeout},
             written_by="runner")
@@ -609,10 +334,7 @@ class Experiment:
             rs.write_run_yaml(self.prefix, record)
         except OSError as e:
             self.out(f"warning: cannot write {self.prefix}_run.yaml ({e.strerror})")
-        why = f"{status}: {record['reason']}" if record["reason"] and \
-            record["reason"] != f"ended: {status}" else status
-        if status == rs.FAIL and record["robots"]:
-            why = f"FAIL: robot(s) {', '.join(map(str, record['robots']))} sent no visit for " \
-                  f"{cfg.dead_robot_timeout:g} sim s"
-        return Outcome(code, why, self.prefix, [f for f in files if os.path.isfile(f)],
-                       sim or 0.0, wall, go_wall, status, record)
+        files = [f"{self.prefix}_{s}" for s in RESULT_SUFFIXES]
+        return Outcome(code, summary(status, record, cfg.dead_robot_timeout), self.prefix,
+                       [f for f in files if os.path.isfile(f)], sim or 0.0, wall, run.go_wall,
+                       status, record)

@@ -1,4 +1,6 @@
-"""A stand-in for N robots' move_base, for tests and benchmarks without a simulator.
+#!/usr/bin/python3
+"""A stand-in for N robots' move_base, for tests and benchmarks without a simulator (a test
+tool: it lives in tools/, outside the library package; node type ``fake_move_base.py``).
 
 One node serves ``robot_i/move_base`` (move_base_msgs/MoveBase action) and
 ``robot_i/move_base/clear_costmaps`` (std_srvs/Empty) for i = 0..N-1. Each robot is a point
@@ -25,6 +27,7 @@ Counters for tests are set as parameters ``~stats/robot_<i>/{goals,succeeded,abo
 cancelled,clear_costmaps,cmd_vel}`` once per second.
 """
 import math
+import sys
 import threading
 import time
 
@@ -37,7 +40,7 @@ from rosgraph_msgs.msg import Clock
 from move_base_msgs.msg import MoveBaseAction, MoveBaseFeedback, MoveBaseResult
 from std_srvs.srv import Empty, EmptyResponse
 
-from ..errors import PatrolInputError
+from patrolling_sim.errors import PatrolInputError
 
 
 class FakeRobot:
@@ -145,8 +148,8 @@ class FakeMoveBase:
         self.abort_xy = []
         abort = list(rospy.get_param("~abort_vertices", []))
         if abort:
-            from ..graph import PatrolGraph, load_graph
-            from ..paths import map_files
+            from patrolling_sim.graph import PatrolGraph, load_graph
+            from patrolling_sim.paths import map_files
             _, gpath = map_files(rospy.get_param("~map"))
             g = PatrolGraph(load_graph(gpath))
             self.abort_xy = [tuple(g.pos[int(v)]) for v in abort]
@@ -189,7 +192,6 @@ def start_clock(scale, hz=100.0):
 
 
 def main():
-    import sys
     rospy.init_node("fake_move_base")
     if rospy.get_param("~publish_clock", False):
         scale = float(rospy.get_param("~time_scale", 1.0))
@@ -204,3 +206,7 @@ def main():
         return 2
     rospy.spin()
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,19 @@
+"""Start-up signal handling shared by the command-line scripts (imported first, before any
+heavy module, so it must stay tiny): a SIGINT / SIGTERM while the program is still loading
+ends it at once with one line and the shell's exit code (130 / 143). Nothing has been
+started or written yet; the program installs its own handlers later."""
+import os
+import signal
+import sys
+
+
+def install(program):
+    """Install the early handlers for ``program`` (its name in the message). Also when
+    SIGINT was inherited ignored (``cmd &`` in a script)."""
+    def handler(signum, frame):
+        sys.stderr.write(f"{program}: interrupted by {signal.Signals(signum).name} before "
+                         "the run started\n")
+        sys.stderr.flush()
+        os._exit(143 if signum == signal.SIGTERM else 130)
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)

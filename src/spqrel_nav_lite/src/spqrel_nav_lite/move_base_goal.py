@@ -1,0 +1,236 @@
+"""move_base's goal execution (the action's execute callback, the control loop and the
+recovery behaviours), mixed into :class:`spqrel_nav_lite.move_base_node.MoveBase`, which
+provides the inputs (pose, laser, obstacle memory), the planner and the outputs.
+"""
+import math
+
+import numpy as np
+import rospy
+from move_base_msgs.msg import MoveBaseFeedback, MoveBaseResult
+
+from spqrel_nav_lite.controller import compute_command
+from spqrel_nav_lite.geometry import compose
+from spqrel_nav_lite.planner import PlanningError, path_blocked, path_length
+from spqrel_nav_lite.ros_util import fill_pose, strip_slash
+
+
+class Aborted(Exception):
+    pass
+
+
+class GoalExecution:
+    def execute(self, goal_msg):
+        while True:
+            try:
+                nxt = self.run_goal(goal_msg)
+            except Aborted as e:
+                self.stop()
+                rospy.logwarn("move_base: goal aborted: %s", e)
+                self.server.set_aborted(MoveBaseResult(), str(e))
+                return
+            except rospy.ROSInterruptException:
+                self.end_at_shutdown()
+                return
+            except Exception as e:     # never leave the robot driving on a bug
+                self.stop()
+                rospy.logerr("move_base: internal error: %r", e)
+                self.server.set_aborted(MoveBaseResult(), f"internal error: {e!r}")
+                return
+            self.stop()
+            if nxt is None:
+                self.end_at_shutdown()
+                return
+            goal_msg = nxt
+
+    def end_at_shutdown(self):
+        """Every goal ends in a terminal state: the control loop also ends when the node shuts
+        down (rospy.is_shutdown(), or a sleep raising ROSInterruptException) with the goal
+        still active; it is then aborted, before actionlib would do it with a warning."""
+        if not self.server.is_active():
+            return
+        try:
+            self.server.set_aborted(MoveBaseResult(), "navigation shutting down")
+        except Exception as e:  # the result publisher may already be closed: nothing to tell
+            rospy.logdebug("move_base: aborting the goal at shutdown: %r", e)
+
+    def run_goal(self, goal_msg):
+        """Drive to the goal. Returns a new goal if preempted by one, None when finished."""
+        frame = strip_slash(goal_msg.target_pose.header.frame_id)
+        if frame not in ("", self.global_frame):
+            raise Aborted(f"goal frame '{frame}' is not the global frame "
+                          f"'{self.global_frame}'")
+        gp = goal_msg.target_pose.pose.position
+        goal = (gp.x, gp.y)
+        if not (math.isfinite(gp.x) and math.isfinite(gp.y)):
+            raise Aborted("goal position is not finite")
+        rate = rospy.Rate(self.frequency)
+        dt = 1.0 / self.frequency
+        start = rospy.get_time()
+        pose = self.pose()
+        while pose is None:
+            if rospy.get_time() - start > self.localization_timeout:
+                raise Aborted(f"no pose: nothing on amcl_pose/odom for "
+                              f"{self.localization_timeout:.0f} s")
+            if self.server.is_preempt_requested():
+                return self.preempted()
+            rate.sleep()
+            pose = self.pose()
+        self.laser(pose)
+        try:
+            path = self.make_plan(pose, goal)
+        except PlanningError as e:
+            self.planner.clear_obstacles()
+            try:    # a bad goal is final
+                self.planner.check_goal(goal[0], goal[1], self.cp.xy_goal_tolerance)
+            except PlanningError as bad:
+                raise Aborted(str(bad)) from None
+            try:    # maybe only temporary obstacles are in the way: try the static map
+                with self.lock:
+                    self.memory.clear()
+                path = self.make_plan(pose, goal, with_obstacles=False)
+            except PlanningError:
+                raise Aborted(str(e)) from None
+        timeout = self.goal_timeout if self.goal_timeout > 0 else \
+            30.0 + 4.0 * path_length(path) / self.cp.max_vel_x
+        deadline = start + timeout
+        index = 0
+        last_plan = rospy.get_time()
+        best_remaining, best_time = math.inf, rospy.get_time()
+        blocked_since = None
+        recoveries = 0
+        feedback = MoveBaseFeedback()
+        feedback.base_position.header.frame_id = self.global_frame
+        last_feedback = -math.inf
+        while not rospy.is_shutdown():
+            if self.server.is_preempt_requested():
+                return self.preempted()
+            now = rospy.get_time()
+            if now > deadline:
+                raise Aborted(f"timeout: goal not reached within {timeout:.0f} s")
+            used_stamp = self.odom_stamp()
+            pose = self.pose()
+            if pose is None:
+                raise Aborted("lost the pose")
+            near, dynamic = self.laser(pose)
+            # periodic replanning (the navigation function makes it cheap unless the
+            # obstacle set changed), and immediate replanning if the path is blocked
+            replan = self.planner_frequency > 0 and now - last_plan >= 1.0 / self.planner_frequency
+            with self.lock:
+                obst = self.memory.points()
+            refresh = False
+            if len(obst) and now - last_plan >= 0.5 and \
+                    path_blocked(path, obst, self.cp.robot_radius + self.cp.safety_margin, index,
+                                 3.0) is not None:
+                replan = refresh = True
+            if replan:
+                last_plan = now
+                try:
+                    path = self.make_plan(pose, goal, refresh=refresh)
+                    index = 0
+                except PlanningError as e:
+                    if blocked_since is None:
+                        blocked_since = now
+                    rospy.logdebug("move_base: replanning failed: %s", e)
+            cmd = compute_command(pose, self.v, self.w, path, index, near, dt, self.cp, dynamic)
+            index = cmd.index
+            if cmd.done:
+                self.stop()
+                self.server.set_succeeded(MoveBaseResult(), "goal reached")
+                return None
+            remaining = self.planner.path_cost(pose[:2])
+            if not math.isfinite(remaining):
+                remaining = path_length(path[index:])
+            if remaining < best_remaining - 0.1:
+                best_remaining, best_time = remaining, now
+            if cmd.blocked:
+                blocked_since = blocked_since if blocked_since is not None else now
+            elif self.v > 0.05:
+                blocked_since = None
+            stuck = (blocked_since is not None and now - blocked_since > self.blocked_patience) \
+                or now - best_time > self.controller_patience
+            if stuck:
+                recoveries += 1
+                reason = "blocked by an obstacle" if blocked_since is not None else \
+                    f"no progress for {self.controller_patience:.0f} s"
+                if recoveries > self.max_recoveries:
+                    raise Aborted(f"{reason}; giving up after {self.max_recoveries} recoveries")
+                rospy.loginfo("move_base: %s, recovery %d/%d", reason, recoveries,
+                              self.max_recoveries)
+                res = self.recover(recoveries, goal, rate)
+                if res is not None:
+                    return res
+                pose = self.pose()
+                try:
+                    path = self.make_plan(pose, goal)
+                except PlanningError:
+                    pass
+                index = 0
+                blocked_since = None
+                best_remaining, best_time = math.inf, rospy.get_time()
+                last_plan = rospy.get_time()
+                continue
+            self.send(cmd.v, cmd.w)
+            if now - last_feedback >= self.feedback_period - 1e-6:
+                last_feedback = now
+                feedback.base_position.header.stamp = rospy.Time.now()
+                fill_pose(feedback.base_position.pose, pose)
+                self.server.publish_feedback(feedback)
+            self.wait_cycle(dt, used_stamp)
+        return None
+
+    def preempted(self):
+        self.stop()
+        if self.server.is_new_goal_available():
+            return self.server.accept_new_goal()
+        self.server.set_preempted(MoveBaseResult(), "preempted")
+        return None
+
+    def recover(self, attempt, goal, rate):
+        """Back up a little if nothing is close beside or behind, then turn in place towards
+        the freer side. Returns a new goal if preempted meanwhile."""
+        pose0 = self.pose()
+        t0 = rospy.get_time()
+        # 1. back up 0.3 m (the laser does not see behind: only if the sides are clear)
+        while rospy.get_time() - t0 < 3.0:
+            if self.server.is_preempt_requested():
+                return self.preempted()
+            pose = self.pose()
+            near, _ = self.laser(pose)
+            if math.hypot(pose[0] - pose0[0], pose[1] - pose0[1]) > 0.3:
+                break
+            side = near[(near[:, 0] < 0.1)] if len(near) else near
+            if len(side) and np.min(np.hypot(side[:, 0], side[:, 1])) < self.cp.robot_radius + 0.1:
+                break
+            if self.planner.map.clearance_at(*compose(pose, (-0.35, 0.0, 0.0))[:2]) < \
+                    self.cp.robot_radius:
+                break
+            self.send(-0.15, 0.0)
+            rate.sleep()
+        self.stop()
+        # 2. turn in place by up to ~1.5 rad, away from the nearest obstacle side
+        pose = self.pose()
+        near, _ = self.laser(pose)
+        direction = 1.0 if attempt % 2 else -1.0
+        if len(near):
+            left = near[near[:, 1] > 0]
+            right = near[near[:, 1] <= 0]
+            dl = np.min(np.hypot(*left.T)) if len(left) else 99.0
+            dr = np.min(np.hypot(*right.T)) if len(right) else 99.0
+            direction = 1.0 if dl > dr else -1.0
+        yaw0 = pose[2]
+        t0 = rospy.get_time()
+        while rospy.get_time() - t0 < 4.0:
+            if self.server.is_preempt_requested():
+                return self.preempted()
+            pose = self.pose()
+            turned = abs(math.atan2(math.sin(pose[2] - yaw0), math.cos(pose[2] - yaw0)))
+            if turned > 1.5:
+                break
+            w = direction * 0.6
+            self.send(0.0, w)
+            self.laser(pose)
+            rate.sleep()
+        self.stop()
+        # obstacles still seen stay in memory (so the new plan goes around them); the others
+        # expire or are cleared by the beams that now pass through them
+        return None

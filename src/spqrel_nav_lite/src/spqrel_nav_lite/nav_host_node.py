@@ -1,0 +1,85 @@
+"""nav_host: the localiser + move_base of MANY robots in one process.
+
+Each hosted robot keeps exactly the interface of a per-robot ``robot_nav`` (or of the separate
+``amcl`` / ``fake_localization`` and ``move_base`` nodes): its topics (``/robot_i/cmd_vel``,
+``amcl_pose``, ``particlecloud``, ``move_base/plan``, ...), the ``/robot_i/move_base`` action,
+the ``/robot_i/move_base/clear_costmaps`` and ``/robot_i/global_localization`` services, its
+frames (``robot_i/odom``, ``robot_i/base_link``) and its parameters, read where the standalone
+nodes read them (``/robot_i/move_base/*``, ``/robot_i/amcl/*``). Only the node name behind them
+differs. What the robots share (docs/navigation.md) is built once per process by
+:class:`~spqrel_nav_lite.shared.SharedMaps`: the static map, its distance transform, the
+likelihood fields and the planner's cost grid and graph, plus a navigation-function cache
+bounded by ``~plan_cache_mb`` (a goal searched for one robot is free for the others).
+
+Private parameters: ``~robots`` (robot namespaces, a list or a space-separated string, e.g.
+``"robot_0 robot_1"``), ``~localization`` (``AMCL`` | ``fake_localization``, default
+``AMCL``), ``~map_yaml`` (else ``/map`` or ``static_map``), ``~plan_cache_mb`` (default 128)
+and ``~plan_cache_goals`` (default 0: the cache keeps at least that many navigation functions,
+whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex count).
+"""
+import re
+
+import rospy
+
+from .ros_util import fatal, get_map, param
+
+MODES = ("AMCL", "fake_localization")
+ROBOT_NS = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
+
+
+def robot_namespaces(value):
+    """List of robot namespaces from ``~robots`` (list or space-separated string); raises
+    ValueError with the reason when empty, malformed or repeated."""
+    items = value.split() if isinstance(value, str) else value
+    if not isinstance(items, (list, tuple)) or not items:
+        raise ValueError(f"expected a non-empty list of robot namespaces, got {value!r}")
+    out = []
+    for item in items:
+        name = str(item).strip("/")
+        if not ROBOT_NS.match(name):
+            raise ValueError(f"'{item}' is not a valid namespace")
+        if name in out:
+            raise ValueError(f"robot '{name}' is listed twice")
+        out.append(name)
+    return out
+
+
+def main():
+    rospy.init_node("nav_host")
+    mode = rospy.get_param("~localization", "AMCL")
+    if mode not in MODES:
+        fatal(f"parameter ~localization: '{mode}' is not one of {', '.join(MODES)}")
+    try:
+        robots = robot_namespaces(rospy.get_param("~robots", ""))
+    except ValueError as e:
+        fatal(f"parameter ~robots: {e}")
+    cache_mb = param("plan_cache_mb", 128.0, check=lambda v: v >= 0, what="must be >= 0")
+    cache_goals = param("plan_cache_goals", 0, int, check=lambda v: v >= 0, what="must be >= 0")
+    from .move_base_node import MoveBase
+    from .shared import SharedMaps
+    shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals)
+    if mode == "AMCL":
+        from .amcl_node import Amcl, log_update_times
+    else:
+        from .fake_localization_node import FakeLocalization
+    hosted = []
+    for name in robots:
+        r = "/" + name + "/"
+        move_base = MoveBase(ns="move_base/", subscribe_pose=False, robot_ns=r, shared=shared)
+        if mode == "AMCL":
+            loc = Amcl(ns="amcl/", pose_listeners=[move_base.set_localisation], robot_ns=r,
+                       shared=shared)
+        else:
+            loc = FakeLocalization(ns="fake_localization/",
+                                   pose_listeners=[move_base.set_localisation], robot_ns=r)
+        hosted.append((move_base, loc))
+    rospy.loginfo("nav_host: %s + move_base of %d robots (%s) in one process", mode,
+                  len(robots), " ".join(robots))
+    rospy.spin()
+    fields, grids, cached, hits, misses = shared.stats()
+    rospy.loginfo("nav_host: %d likelihood field(s), %d planner grid(s), %d navigation "
+                  "functions cached, %d cache hits, %d misses", fields, grids, cached, hits,
+                  misses)
+    if mode == "AMCL":
+        for _, loc in hosted:
+            log_update_times(loc)
