@@ -189,3 +189,22 @@ def test_all_expands_to_every_map_and_algorithm(tmp_path):
                          code={"commit": "x", "dirty": False})
     assert {r.config["map"] for r in camp.runs} == set(paths.available_maps())
     assert {r.config["alg"] for r in camp.runs} == set(names())
+
+
+def test_scenario_runs_get_scenario_columns_and_metrics():
+    """A run with a failure and a communication model: its row has the scn_* columns (the
+    failure time, message counters) and its metrics file the per-failure impact; a run
+    without a scenario has neither."""
+    from patrolling_sim.campaign_tasks import run_graph_task
+    base = dict(map="grid", robots=4, alg="SEBS", duration=900.0, seed=1)
+    res = run_graph_task(dict(base, attrition="1@400", comm="bernoulli:p=0.3"))
+    m = res["metrics"]
+    assert res["status"] == "TIMEOUT"
+    assert m["scn_failures"] == 1 and m["scn_first_failure"] == pytest.approx(400.0, abs=1.0)
+    assert m["scn_msgs_sent"] > m["scn_msgs_delivered"] > 0
+    assert 0.5 < m["scn_delivered_share"] < 0.9            # 30 % loss
+    assert m["scn_idl_before"] > 0 and m["scn_idl_after"] > 0
+    doc = yaml.safe_load(res["files"][res["prefix"] + "_metrics.yaml"])
+    assert [f["robots"] for f in doc["scenario"]["failures"]] == [[1]]
+    plain = run_graph_task(base)["metrics"]
+    assert not [k for k in plain if k.startswith("scn_")]

@@ -81,7 +81,8 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign) -> d
 
 def extra_row_columns(spec: RunSpec, record: Optional[dict]) -> dict:
     """Merge hook: further columns of a run's ``runs.csv`` row derived from its configuration
-    (e.g. the scenario's columns). None yet."""
+    (the scenario's ``scn_*`` columns are computed with the metrics, in the worker:
+    :func:`patrolling_sim.campaign_tasks.run_metrics`). None at present."""
     return {}
 
 

@@ -70,6 +70,17 @@ def run_metrics(files: Dict[str, str], prefix: str, map_name: str, visits_path: 
             row[k] = md[k]
         for k, v in md["idleness_percentiles"].items():
             row[f"idl_{k}"] = v
+        full = visits_path[:-len("_visits.csv")]
+        if os.path.isfile(full + "_scenario.yaml"):
+            # failures / communication model (docs/scenarios.md): per-failure impact in the
+            # metrics file, the first failure's figures and the message counters as scn_*
+            # columns (prefixed: the config columns already hold comm and attrition)
+            from .scenario import scenario_columns, scenario_metrics
+            n, dur = paths.vertex_count(map_name), row["sim_duration"]
+            md["scenario"] = scenario_metrics(full, n, dur)
+            files[prefix + "_metrics.yaml"] = yaml.dump(md, Dumper=_Dumper, sort_keys=False)
+            for k, v in scenario_columns(full, n, dur).items():
+                row["scn_" + k] = v
     return row
 
 
