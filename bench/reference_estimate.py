@@ -1,0 +1,99 @@
+#!/usr/bin/python3
+"""Estimate of the full reference campaign (campaigns/reference.yaml) from a stratified sample.
+
+    bench/reference_estimate.py [--campaign campaigns/reference.yaml] [--durations 150,300]
+                                [--fraction 1.0] [--workers 2] [--seed 0]
+
+Every (map, team size, algorithm) cell of the campaign (or a random ``--fraction`` of them) is
+run once, with the campaign's first seed, at each of the short ``--durations``, through the
+same worker function the campaign engine runs (simulation, files read back, metrics). Per
+cell, CPU s = a + b * duration is fitted on the short runs (a: set-up, b: simulation per
+simulated second) and extrapolated to the campaign's duration, times its seed count. Prints
+the per-map CPU time, the total, and the wall time on ``--workers`` workers (total / workers
+plus the engine's cost per run measured by bench/campaign_bench.py, ``--engine-ms``), and the
+slowest cells. CPU s are the thread's own (``time.thread_time``), so the figure does not
+depend on the machine's load; the wall time assumes the workers each get a whole core.
+"""
+import argparse
+import datetime
+import os
+import platform
+import random
+import sys
+import time
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--campaign", default=os.path.join(ROOT, "campaigns", "reference.yaml"))
+    ap.add_argument("--durations", default="150,300",
+                    help="short durations (s) each sampled cell runs at (two or more)")
+    ap.add_argument("--fraction", type=float, default=1.0, help="share of the cells sampled")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--engine-ms", type=float, default=8.0,
+                    help="engine cost per run (ms), from bench/campaign_bench.py")
+    ap.add_argument("--seed", type=int, default=0, help="sampling seed")
+    a = ap.parse_args()
+    durs = sorted(float(x) for x in a.durations.split(","))
+    if len(durs) < 2 or not 0 < a.fraction <= 1:
+        ap.error("give two durations or more and 0 < --fraction <= 1")
+    import numpy as np
+    from patrolling_sim.campaign_spec import load_campaign
+    from patrolling_sim.campaign_tasks import run_graph_task
+    camp = load_campaign(a.campaign)
+    runs = camp.runs
+    seeds = sorted({r.config["seed"] for r in runs})
+    full_dur = {r.config["duration"] for r in runs}
+    assert len(full_dur) == 1, "one duration per campaign expected"
+    full_dur = float(full_dur.pop())
+    cells = {}
+    for r in runs:
+        cells.setdefault((r.config["map"], r.config["robots"], r.config["alg"]), r.config)
+    keys = sorted(cells)
+    sample = keys if a.fraction >= 1 else sorted(
+        random.Random(a.seed).sample(keys, max(1, round(a.fraction * len(keys)))))
+    print(f"# reference campaign estimate: {len(runs)} runs ({len(keys)} cells x {len(seeds)} "
+          f"seeds, {full_dur:.0f} s); sampling {len(sample)} cells at {durs} s", flush=True)
+    est, cpu_used, t0 = {}, 0.0, time.perf_counter()
+    for i, k in enumerate(sample):
+        ys = []
+        for d in durs:
+            c = dict(cells[k], seed=seeds[0], duration=d)
+            res = run_graph_task(c)
+            ys.append(res["cpu_s"])
+            cpu_used += res["cpu_s"]
+        b, a0 = np.polyfit(durs, ys, 1)
+        est[k] = max(a0 + b * full_dur, max(ys))      # never below what was measured
+        if (i + 1) % 50 == 0:
+            print(f"  {i + 1}/{len(sample)} cells, {cpu_used:.0f} CPU s so far", flush=True)
+    per_cell = np.mean(list(est.values()))
+    total = per_cell * len(keys) * len(seeds)        # a sample stands for its share of cells
+    by_map = {}
+    for (m, n, alg), v in est.items():
+        by_map[m] = by_map.get(m, 0.0) + v * len(seeds) * len(keys) / len(sample)
+    engine = len(runs) * a.engine_ms / 1000.0
+    wall = total / a.workers + engine / a.workers
+    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
+    print(f"\nhost {platform.node()}, {stamp} UTC, load avg {os.getloadavg()[0]:.2f}; sample: {cpu_used:.0f} CPU s, "
+          f"{time.perf_counter() - t0:.0f} s wall\n")
+    print("| map | CPU s (full campaign, estimated) |\n|---|---|")
+    for m, v in sorted(by_map.items(), key=lambda kv: -kv[1]):
+        print(f"| {m} | {v:.0f} |")
+    print(f"| **total** | **{total:.0f}** ({total / 3600:.2f} CPU h) |\n")
+    print(f"wall on {a.workers} worker(s): {wall / 60:.1f} min (CPU / workers, plus "
+          f"{a.engine_ms:g} ms engine cost per run); 1 worker: "
+          f"{(total + engine) / 60:.1f} min\n")
+    print("slowest cells (CPU s per run at full duration):")
+    for k, v in sorted(est.items(), key=lambda kv: -kv[1])[:10]:
+        print(f"  {k[0]}_{k[1]} {k[2]}: {v:.2f}")
+    print(f"\ncommand: bench/reference_estimate.py --campaign {os.path.relpath(a.campaign, ROOT)} "
+          f"--durations {a.durations} --fraction {a.fraction:g} --workers {a.workers}")
+    print(f"full run: scripts/campaign.py {os.path.relpath(a.campaign, ROOT)} --workers "
+          f"{a.workers}")
+
+
+if __name__ == "__main__":
+    main()
