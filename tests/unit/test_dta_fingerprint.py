@@ -41,3 +41,35 @@ def test_dta_runs_unchanged(case, tmp_path):
     digest, sent = fingerprint(*case, tmp_path)
     assert sent > 100                          # the merge path is exercised
     assert digest == FINGERPRINTS[case]
+
+
+def test_decode_seconds_is_the_old_conversion():
+    from patrolling_sim.algorithms.dta_common import (IdlenessEstimate, decode_idleness,
+                                                      decode_seconds)
+    data = [3, 40, 0, 17, 32767, -32768, 5, 2]
+    sec, nxt = decode_seconds(data, 5)
+    ten, nxt2 = decode_idleness(data, 5)
+    assert nxt == nxt2 == 2 and sec.tolist() == (ten / 10.0).tolist()
+    assert not sec.flags.writeable
+    assert decode_seconds(data, 4) is None and decode_seconds([3, 41] + data[2:], 5) is None
+    a, b = IdlenessEstimate(5, 100.0, 0.0), IdlenessEstimate(5, 100.0, 0.0)
+    a.merge(ten, 3.5)
+    b.merge_seconds(sec, 3.5)
+    assert a.values.tolist() == b.values.tolist() and a.t == b.t == 3.5
+
+
+def test_versioned_dict_counts_every_change():
+    from patrolling_sim.algorithms.dta_common import VersionedDict
+    d = VersionedDict()
+    seen = [d.version]
+    d[1] = (2.0, 0)
+    d.setdefault(2, (1.0, 1))
+    d.update({3: (0.5, 2)})
+    d.pop(3)
+    del d[2]
+    d |= {4: (1.0, 0)}
+    d.popitem()
+    d.clear()
+    assert d.version == 8 and seen == [0] and d == {}
+    _ = d.get(1), list(d.items())
+    assert d.version == 8                      # reading does not count
