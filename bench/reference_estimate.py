@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Estimate of the full reference campaign (campaigns/reference.yaml) from a stratified sample.
 
-    bench/reference_estimate.py [--campaign campaigns/reference.yaml] [--durations 150,300]
+    bench/reference_estimate.py [--campaign campaigns/reference.yaml] [--durations 300,600]
                                 [--fraction 1.0] [--workers 2] [--seed 0]
 
 Every (map, team size, algorithm) cell of the campaign (or a random ``--fraction`` of them) is
@@ -29,7 +29,7 @@ sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--campaign", default=os.path.join(ROOT, "campaigns", "reference.yaml"))
-    ap.add_argument("--durations", default="150,300",
+    ap.add_argument("--durations", default="300,600",
                     help="short durations (s) each sampled cell runs at (two or more)")
     ap.add_argument("--fraction", type=float, default=1.0, help="share of the cells sampled")
     ap.add_argument("--workers", type=int, default=2)
@@ -71,9 +71,10 @@ def main():
             print(f"  {i + 1}/{len(sample)} cells, {cpu_used:.0f} CPU s so far", flush=True)
     per_cell = np.mean(list(est.values()))
     total = per_cell * len(keys) * len(seeds)        # a sample stands for its share of cells
-    by_map = {}
+    by_map, by_alg = {}, {}
     for (m, n, alg), v in est.items():
         by_map[m] = by_map.get(m, 0.0) + v * len(seeds) * len(keys) / len(sample)
+        by_alg[alg] = by_alg.get(alg, 0.0) + v * len(seeds) * len(keys) / len(sample)
     engine = len(runs) * a.engine_ms / 1000.0
     wall = total / a.workers + engine / a.workers
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
@@ -83,6 +84,10 @@ def main():
     for m, v in sorted(by_map.items(), key=lambda kv: -kv[1]):
         print(f"| {m} | {v:.0f} |")
     print(f"| **total** | **{total:.0f}** ({total / 3600:.2f} CPU h) |\n")
+    print("| algorithm | CPU s (full campaign, estimated) |\n|---|---|")
+    for m, v in sorted(by_alg.items(), key=lambda kv: -kv[1]):
+        print(f"| {m} | {v:.0f} |")
+    print()
     print(f"wall on {a.workers} worker(s): {wall / 60:.1f} min (CPU / workers, plus "
           f"{a.engine_ms:g} ms engine cost per run); 1 worker: "
           f"{(total + engine) / 60:.1f} min\n")
