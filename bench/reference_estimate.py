@@ -11,7 +11,9 @@ cell, CPU s = a + b * duration is fitted on the short runs (a: set-up, b: simula
 simulated second) and extrapolated to the campaign's duration, times its seed count. Prints
 the per-map CPU time, the total, and the wall time on ``--workers`` workers (total / workers
 plus the engine's cost per run measured by bench/campaign_bench.py, ``--engine-ms``), and the
-slowest cells. CPU s are the thread's own (``time.thread_time``), so the figure does not
+slowest cells. ``--from-campaign DIR`` instead extrapolates from the runs a (partial) campaign
+folder of the same campaign has done: the mean ``cpu_s`` of each cell's finished runs (full
+duration) times the seed count (every cell needs one finished run). CPU s are the thread's own (``time.thread_time``), so the figure does not
 depend on the machine's load; the wall time assumes the workers each get a whole core.
 """
 import argparse
@@ -36,6 +38,8 @@ def main():
     ap.add_argument("--engine-ms", type=float, default=8.0,
                     help="engine cost per run (ms), from bench/campaign_bench.py")
     ap.add_argument("--seed", type=int, default=0, help="sampling seed")
+    ap.add_argument("--from-campaign", metavar="DIR",
+                    help="extrapolate from the finished runs of this campaign folder instead")
     a = ap.parse_args()
     durs = sorted(float(x) for x in a.durations.split(","))
     if len(durs) < 2 or not 0 < a.fraction <= 1:
@@ -53,6 +57,19 @@ def main():
     for r in runs:
         cells.setdefault((r.config["map"], r.config["robots"], r.config["alg"]), r.config)
     keys = sorted(cells)
+    if a.from_campaign:
+        import pandas as pd
+        df = pd.read_csv(os.path.join(a.from_campaign, "runs.csv"))
+        df = df[df["status"].isin(["TIMEOUT", "CYCLES"])]
+        g = df.groupby(["map", "robots", "alg"])["cpu_s"].mean()
+        missing = [k for k in keys if k not in g.index]
+        if missing:
+            sys.exit(f"reference_estimate.py: {len(missing)} cells without a finished run in "
+                     f"{a.from_campaign} (e.g. {missing[0]})")
+        report(a, runs, keys, seeds, {k: float(g[k]) for k in keys}, keys,
+               f"{len(df)} finished runs of {a.from_campaign} (full duration, mean cpu_s per "
+               "cell)")
+        return
     sample = keys if a.fraction >= 1 else sorted(
         random.Random(a.seed).sample(keys, max(1, round(a.fraction * len(keys)))))
     print(f"# reference campaign estimate: {len(runs)} runs ({len(keys)} cells x {len(seeds)} "
@@ -69,6 +86,13 @@ def main():
         est[k] = max(a0 + b * full_dur, max(ys))      # never below what was measured
         if (i + 1) % 50 == 0:
             print(f"  {i + 1}/{len(sample)} cells, {cpu_used:.0f} CPU s so far", flush=True)
+    report(a, runs, keys, seeds, est, sample,
+           f"{cpu_used:.0f} CPU s, {time.perf_counter() - t0:.0f} s wall")
+
+
+def report(a, runs, keys, seeds, est, sample, how):
+    """Print the extrapolation of ``est`` (CPU s per run at full duration, per cell)."""
+    import numpy as np
     per_cell = np.mean(list(est.values()))
     total = per_cell * len(keys) * len(seeds)        # a sample stands for its share of cells
     by_map, by_alg = {}, {}
@@ -78,8 +102,8 @@ def main():
     engine = len(runs) * a.engine_ms / 1000.0
     wall = total / a.workers + engine / a.workers
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
-    print(f"\nhost {platform.node()}, {stamp} UTC, load avg {os.getloadavg()[0]:.2f}; sample: {cpu_used:.0f} CPU s, "
-          f"{time.perf_counter() - t0:.0f} s wall\n")
+    print(f"\nhost {platform.node()}, {stamp} UTC, load avg {os.getloadavg()[0]:.2f}; "
+          f"sample: {how}\n")
     print("| map | CPU s (full campaign, estimated) |\n|---|---|")
     for m, v in sorted(by_map.items(), key=lambda kv: -kv[1]):
         print(f"| {m} | {v:.0f} |")
@@ -94,8 +118,7 @@ def main():
     print("slowest cells (CPU s per run at full duration):")
     for k, v in sorted(est.items(), key=lambda kv: -kv[1])[:10]:
         print(f"  {k[0]}_{k[1]} {k[2]}: {v:.2f}")
-    print(f"\ncommand: bench/reference_estimate.py --campaign {os.path.relpath(a.campaign, ROOT)} "
-          f"--durations {a.durations} --fraction {a.fraction:g} --workers {a.workers}")
+    print("\ncommand: bench/reference_estimate.py " + " ".join(sys.argv[1:]))
     print(f"full run: scripts/campaign.py {os.path.relpath(a.campaign, ROOT)} --workers "
           f"{a.workers}")
 
