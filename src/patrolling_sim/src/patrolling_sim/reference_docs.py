@@ -128,17 +128,20 @@ def _figure(map_name, stats, refs, algs):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.ticker import ScalarFormatter
-    fig = Figure(figsize=(11, 4.4))
+    import matplotlib
+    cmap = matplotlib.colormaps["tab20"]
+    fig = Figure(figsize=(12, 4.6))
     FigureCanvasAgg(fig)
     sizes = sorted(refs)
     for ax, col, title in zip(fig.subplots(1, 2), ("idl_avg", "worst_idleness"),
                               ("average idleness (original's)", "worst idleness")):
-        for a in algs:
+        for i, a in enumerate(algs):           # 13+ algorithms: 20 colours, 5 markers
             s = stats[stats["alg"] == a].sort_values("robots")
             s = s[s["n"] > 0]
             if len(s):
                 ax.errorbar(s["robots"], s[col + "_mean"], yerr=s[col + "_sd"].fillna(0),
-                            marker="o", ms=3, capsize=2, lw=1, label=a)
+                            marker="os^vD"[i % 5], ms=3.5, capsize=2, lw=1,
+                            color=cmap(i % 20), label=a)
         ax.plot(sizes, [refs[n].cyclic_idleness for n in sizes], "k--", lw=1.6,
                 label="cyclic L/(k v)")
         if col == "worst_idleness":            # a bound on the worst idleness only
@@ -148,13 +151,12 @@ def _figure(map_name, stats, refs, algs):
         ax.set_ylabel("s")
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(ScalarFormatter())
-        ax.yaxis.set_minor_formatter(ScalarFormatter())
-        ax.tick_params(axis="y", which="minor", labelsize=6)
         ax.set_xticks(sizes)
         ax.set_title(f"{map_name}: {title}")
         ax.grid(alpha=0.3)
-    fig.axes[1].legend(fontsize=7, ncol=2, loc="upper right")
-    fig.tight_layout()
+    handles, labels = fig.axes[1].get_legend_handles_labels()
+    fig.tight_layout(rect=(0, 0, 0.86, 1))
+    fig.legend(handles, labels, fontsize=8, loc="center right")
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
     return buf.getvalue()
@@ -184,7 +186,8 @@ def _map_page(map_name, stats, refs, seeds, header):
         "that ended otherwise, left out). Metric definitions: `docs/metrics.md`. References: "
         "`patrolling_sim.references` (`docs/metrics.md`), at the runs' speed, no goal wait: the "
         "cyclic reference is the idleness of every visit of k robots evenly spaced on the best "
-        "closed tour (so it applies to the average, worst and max idleness), the partition "
+        "closed tour (so it applies to the average, worst and max idleness; a reference, not a bound: "
+        "the original's average counts every visit, a route's repeated passes included), the partition "
         "reference the worst idleness of one robot per part of a balanced partition.", "",
         f"![{map_name}]({map_name}.png)", ""]
     for n in sorted(refs):
