@@ -134,7 +134,10 @@ class DTASSIPart(PatrolStrategy):
         """The original's update_bids: keep the better bid (with hysteresis), refresh tasks."""
         old = self.best_bid.get(v, (NO_BID, -1))
         if old[0] >= (1.0 + self.p["hist"]) * bid:
+            synced = self._tasks_of == self.best_bid.version
             self.best_bid[v] = (bid, robot)
+            if synced and (old[1] == self.id) == (robot == self.id):
+                self._tasks_of = self.best_bid.version  # v stays in (or out of) our tasks
         self._update_tasks()
 
     # -- decisions --------------------------------------------------------------------------
