@@ -13,8 +13,9 @@ the per-map CPU time, the total, and the wall time on ``--workers`` workers (tot
 plus the engine's cost per run measured by bench/campaign_bench.py, ``--engine-ms``), and the
 slowest cells. ``--from-campaign DIR`` instead extrapolates from the runs a (partial) campaign
 folder of the same campaign has done: the mean ``cpu_s`` of each cell's finished runs (full
-duration) times the seed count (every cell needs one finished run). CPU s are the thread's own (``time.thread_time``), so the figure does not
-depend on the machine's load; the wall time assumes the workers each get a whole core.
+duration) times the seed count (every cell needs one finished run). CPU s are the thread's
+own (``time.thread_time``), so the figure depends less on the machine's load than wall time;
+the wall time assumes the workers each get a whole core.
 """
 import argparse
 import datetime

@@ -14,14 +14,20 @@ from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E40
 
 #: (alg, map, robots, seed) -> sha256 of _visits.csv + _idleness.csv, recorded before the
 #: speed-up (commit "test: DTA fingerprints")
-FINGERPRINTS = {  # noqa: E501
-    ("DTAG", "cumberland", 4, 0): "2a43e082ce3a11e397fe01dfe3da4803c997ef87e9ae6505148390fb6df967ec",
-    ("DTAG", "cumberland", 4, 1): "0caa1294670e443a6c141e41a50f792a824744a7447bbdbc2ab791097627da78",
-    ("DTAP", "cumberland", 4, 0): "8939aa87cd334ceb899b33d0f0f03456611b2d80474d126dbba41c387eccf92a",
-    ("DTAP", "cumberland", 4, 1): "71106763d6bb700f692553d1ddbcac5f533661be66343f668777f547f795f197",
+FINGERPRINTS = {
+    ("DTAG", "cumberland", 4, 0):
+        "2a43e082ce3a11e397fe01dfe3da4803c997ef87e9ae6505148390fb6df967ec",
+    ("DTAG", "cumberland", 4, 1):
+        "0caa1294670e443a6c141e41a50f792a824744a7447bbdbc2ab791097627da78",
+    ("DTAP", "cumberland", 4, 0):
+        "8939aa87cd334ceb899b33d0f0f03456611b2d80474d126dbba41c387eccf92a",
+    ("DTAP", "cumberland", 4, 1):
+        "71106763d6bb700f692553d1ddbcac5f533661be66343f668777f547f795f197",
     # a large team on a small map: thousands of merged messages
-    ("DTAG", "DIAG_labs", 12, 0): "9283d33097867ceff2d559fb519aea0e8ec2c0fb3a567b1fb84c4f4e61493e2c",
-    ("DTAP", "DIAG_labs", 12, 0): "540e68ee18eab27f31143ea950b32eeb4d8cff9141267c02116c66fc9ce29a54",
+    ("DTAG", "DIAG_labs", 12, 0):
+        "9283d33097867ceff2d559fb519aea0e8ec2c0fb3a567b1fb84c4f4e61493e2c",
+    ("DTAP", "DIAG_labs", 12, 0):
+        "540e68ee18eab27f31143ea950b32eeb4d8cff9141267c02116c66fc9ce29a54",
 }
 
 

@@ -96,7 +96,8 @@ def test_complete_campaign_is_not_partial(tmp_path):
     docs = rd.build_reference_docs(_write(tmp_path, _runs(seeds=2)[lambda d: d["map"] == "grid"]
                                           .assign(status="TIMEOUT").fillna(1.0)), "cmd")
     assert not docs.partial and docs.done == docs.total == 8
-    assert "PARTIAL" not in docs.files["README.md"] and "complete: 8 of 8" in docs.files["README.md"]
+    index = docs.files["README.md"]
+    assert "PARTIAL" not in index and "complete: 8 of 8" in index
 
 
 @pytest.mark.parametrize("case,msg", [

@@ -186,9 +186,10 @@ def _map_page(map_name, stats, refs, seeds, header):
         "that ended otherwise, left out). Metric definitions: `docs/metrics.md`. References: "
         "`patrolling_sim.references` (`docs/metrics.md`), at the runs' speed, no goal wait: the "
         "cyclic reference is the idleness of every visit of k robots evenly spaced on the best "
-        "closed tour (so it applies to the average, worst and max idleness; a reference, not a bound: "
-        "the original's average counts every visit, a route's repeated passes included), the partition "
-        "reference the worst idleness of one robot per part of a balanced partition.", "",
+        "closed tour (so it applies to the average, worst and max idleness; a reference, not a "
+        "bound: the original's average counts every visit, a route's repeated passes included), "
+        "the partition reference the worst idleness of one robot per part of a balanced "
+        "partition.", "",
         f"![{map_name}]({map_name}.png)", ""]
     for n in sorted(refs):
         r = refs[n]
