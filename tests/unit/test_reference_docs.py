@@ -106,7 +106,7 @@ def test_complete_campaign_is_not_partial(tmp_path):
     ("garbage", "malformed csv"),
     ("nocols", "missing column(s)"),
     ("badmap", "map 'nowhere'"),
-    ("badmetric", "column idl_avg"),
+    ("badmetric", "non-numeric value"),
     ("varies", "column speed varies"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, case, msg):
@@ -123,7 +123,8 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, case, msg):
         df.assign(map=df["map"].replace("1r5", "nowhere")).to_csv(
             os.path.join(camp, "runs.csv"), index=False)
     elif case == "badmetric":
-        df.loc[0, "idl_avg"] = np.nan
+        df["idl_avg"] = df["idl_avg"].astype(object)
+        df.loc[0, "idl_avg"] = "abc"
         df.to_csv(os.path.join(camp, "runs.csv"), index=False)
     elif case == "varies":
         df.loc[0, "speed"] = 0.5

@@ -88,10 +88,12 @@ def load_runs(campaign_dir: str):
         if used.any() and c not in df.columns:
             raise PatrolInputError(f"{path}: missing metric column {c}")
         if c in df.columns:
-            v = pd.to_numeric(df.loc[used, c], errors="coerce")
-            if v.isna().any():
-                raise PatrolInputError(f"{path}: column {c}: a {USED_STATUS} run has no "
-                                       "numeric value")
+            # empty is allowed (a run without any visit has no idleness), text is not
+            raw = df.loc[used, c]
+            v = pd.to_numeric(raw, errors="coerce")
+            if (v.isna() & raw.notna()).any():
+                raise PatrolInputError(f"{path}: column {c}: a {USED_STATUS} run has a "
+                                       f"non-numeric value {raw[v.isna() & raw.notna()].iloc[0]!r}")
             df[c] = pd.to_numeric(df[c], errors="coerce")
     status_at = list(df.columns).index("status")
     for c in list(df.columns)[:status_at]:
@@ -171,8 +173,10 @@ def _cell_stats(df, seeds):
         row = {"map": m, "robots": n, "alg": a, "n": len(ok),
                "not_run": int((g["status"] == NOT_RUN).sum()),
                "excluded": int(((g["status"] != USED_STATUS) & (g["status"] != NOT_RUN)).sum())}
+        # a run without any visit has no idleness: averaged over the runs that have one
+        row["novisit"] = int(ok["idl_avg"].isna().sum()) if "idl_avg" in ok else 0
         for c, _, _ in METRICS:
-            v = ok[c] if c in ok else pd.Series(dtype=float)
+            v = ok[c].dropna() if c in ok else pd.Series(dtype=float)
             row[c + "_mean"] = float(v.mean()) if len(v) else float("nan")
             row[c + "_sd"] = float(v.std(ddof=1)) if len(v) > 1 else float("nan")
         rows.append(row)
@@ -183,7 +187,8 @@ def _map_page(map_name, stats, refs, seeds, header):
     lines = [f"# Reference tables: {map_name}", ""] + header + [
         f"Mean ± SD over the seeds of the runs that ended with {USED_STATUS} (n of {seeds} "
         "seeds; **n\\*** marks a cell with fewer seeds than the campaign's; *excl.* counts runs "
-        "that ended otherwise, left out). Metric definitions: `docs/metrics.md`. References: "
+        "that ended otherwise, left out; a run that made no visit at all has no idleness: its "
+        "cell says so and averages the others). Metric definitions: `docs/metrics.md`. References: "
         "`patrolling_sim.references` (`docs/metrics.md`), at the runs' speed, no goal wait: the "
         "cyclic reference is the idleness of every visit of k robots evenly spaced on the best "
         "closed tour (so it applies to the average, worst and max idleness; a reference, not a "
@@ -199,6 +204,8 @@ def _map_page(map_name, stats, refs, seeds, header):
                   "|---|---|---|" + "---|" * len(METRICS)]
         for _, row in s.iterrows():
             mark = "\\*" if row["n"] < seeds else ""
+            if row["novisit"]:
+                mark += f" ({row['novisit']} without a visit)"
             lines.append(f"| {row['alg']} | {row['n']}{mark} | {row['excluded']} | " + " | ".join(
                 _fmt(row[c + "_mean"], row[c + "_sd"], d) for c, _, d in METRICS) + " |")
         cy, pa = f"{r.cyclic_idleness:.1f}", f"{r.partition_idleness:.1f}"
