@@ -22,7 +22,7 @@ PYTHON_KEYS = {
     "numpy": "python3-numpy", "scipy": "python3-scipy", "cv2": "python3-opencv",
     "yaml": "python3-yaml", "pandas": "python3-pandas", "matplotlib": "python3-matplotlib",
     "networkx": "python3-networkx", "skimage": "python3-skimage",
-    "distributed": "python3-distributed",
+    "distributed": "python3-distributed", "dask": "python3-dask",
 }
 ROS_PYTHON = {"rospy", "rostest", "rosgraph", "roslaunch", "genpy", "actionlib", "tf2_ros",
               "actionlib_msgs", "geometry_msgs", "move_base_msgs", "nav_msgs", "rosgraph_msgs",

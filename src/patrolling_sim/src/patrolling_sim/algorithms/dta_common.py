@@ -37,6 +37,13 @@ class IdlenessEstimate:
         r = np.asarray(received[:len(g)], dtype=float) / IDLENESS_SCALE
         np.minimum(g[:len(r)], r, out=g[:len(r)])
 
+    def merge_seconds(self, received, now):
+        """:meth:`merge` of a payload already decoded to seconds by :func:`decode_seconds`
+        (an array of the estimate's length): the same element-wise minimum, without the
+        conversion (the same numbers: the conversion is the same division, done once)."""
+        g = self.advance(now)
+        np.minimum(g, received, out=g)
+
     def encode(self, now, zero=None):
         """Payload ``I_0..I_{V-1}``: int(10 * gi), values above INT16_MAX replaced by
         INT16_CAP (the original replaces values above 32768, so 32768 itself wraps to
@@ -55,6 +62,37 @@ class IdlenessEstimate:
         return x.tolist()
 
 
+def _counting(name):
+    """dict method ``name`` that also counts a change (VersionedDict)."""
+    def method(self, *a, **kw):
+        self.version += 1
+        return getattr(dict, name)(self, *a, **kw)
+    method.__name__ = name
+    return method
+
+
+class VersionedDict(dict):
+    """A dict that counts its changes (``version``), so a value derived from it can be
+    recomputed only when it changed (DTAP's task set is derived from the bid table after
+    every received bid; most bids change nothing)."""
+    __slots__ = ("version",)
+
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        self.version = 0
+
+    def __setitem__(self, k, v):
+        self.version += 1
+        super().__setitem__(k, v)
+
+    def __delitem__(self, k):
+        self.version += 1
+        super().__delitem__(k)
+
+    pop, popitem, clear, update, setdefault, __ior__ = (
+        _counting(m) for m in ("pop", "popitem", "clear", "update", "setdefault", "__ior__"))
+
+
 def dta_params(ctx, file_name, defaults):
     """DTA parameters: ``ctx.params['dta_params']`` file if given, else the shipped
     ``params/DTA/<file_name>.params``; keys missing from the file read as 0 (the original's
@@ -70,6 +108,32 @@ def decode_idleness(data, n):
     if len(data) != n + 3 or data[1] != MSG_DTA_IDLENESS:
         return None
     return np.asarray(data[2:2 + n], dtype=float), data[2 + n]
+
+
+#: decoded payloads (the message as a tuple -> (seconds, next)): a message reaches every
+#: teammate with the same content, so each is converted once instead of once per receiver
+#: (the conversion was half of a large team's run time). Content-keyed, so sharing it across
+#: robots and simulations in one process cannot change a result; emptied when full.
+_DECODED = {}
+_DECODED_MAX = 512
+
+
+def decode_seconds(data, n):
+    """(idleness in seconds as a read-only float array, next) from
+    ``[id, 40, I_0..I_{n-1}, next]``, or None if malformed: :func:`decode_idleness` divided
+    by :data:`IDLENESS_SCALE`, cached by the message's content."""
+    if len(data) != n + 3 or data[1] != MSG_DTA_IDLENESS:
+        return None
+    key = tuple(data)
+    hit = _DECODED.get(key)
+    if hit is not None:
+        return hit
+    sec = np.array(data[2:2 + n], dtype=float) / IDLENESS_SCALE
+    sec.flags.writeable = False
+    if len(_DECODED) >= _DECODED_MAX:
+        _DECODED.clear()
+    hit = _DECODED[key] = (sec, data[2 + n])
+    return hit
 
 
 def path_hops(pgraph):

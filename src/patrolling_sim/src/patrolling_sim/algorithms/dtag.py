@@ -18,7 +18,7 @@ from it (path costs from the contested vertex) and heads to the new goal.
 import numpy as np
 
 from .base import MSG_DTA_IDLENESS, PatrolStrategy, register
-from .dta_common import IdlenessEstimate, decode_idleness, dta_params
+from .dta_common import IdlenessEstimate, decode_seconds, dta_params
 
 DEFAULTS = {"theta_idleness": 1.0, "theta_navigation": -0.75,
             "theta_distance_from_origin": -5.0}
@@ -73,11 +73,11 @@ class DTAGreedy(PatrolStrategy):
         self.send(MSG_DTA_IDLENESS, *self.gi.encode(now, zero=self.next), self.next)
 
     def on_message(self, data, now):
-        dec = decode_idleness(data, self.graph.n)
+        dec = decode_seconds(data, self.graph.n)
         if dec is None or self.gi is None:
             return
         values, their_next = dec
-        self.gi.merge(values, now)
+        self.gi.merge_seconds(values, now)
         if self.next is not None and their_next == self.next:
             self.current = self.next        # as if reached (not reported)
             self.next = self.choose_next(now)

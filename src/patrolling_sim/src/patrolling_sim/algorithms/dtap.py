@@ -41,7 +41,8 @@ import numpy as np
 
 from .base import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID,
                    MSG_SSI_TASK_REQUEST, PatrolStrategy, register)
-from .dta_common import IdlenessEstimate, decode_idleness, dta_params, path_hops
+from .dta_common import (IdlenessEstimate, VersionedDict, decode_seconds, dta_params,
+                         path_hops)
 
 DEFAULTS = {"timeout": 3.0, "theta_idleness": 1.0, "theta_navigation": 0.0,
             "theta_hop": -2.0, "threshold": 0.0, "hist": 0.0}
@@ -71,8 +72,9 @@ class DTASSIPart(PatrolStrategy):
         self.algorithm_params = ",".join(f"{self.p[k]:g}" for k in DEFAULTS)
         self.gi = None
         self.hops = path_hops(self.graph)
-        self.best_bid = {}          # vertex -> (bid, robot id)
+        self.best_bid = VersionedDict()     # vertex -> (bid, robot id)
         self.task_set = set()       # vertices whose best bid is this robot's
+        self._tasks_of = -1         # best_bid.version the task set was derived from
         self.center = None
         self.won = None             # the target after the next one (next_next)
         self.selected = set()       # candidates excluded in the running auction sequence
@@ -105,6 +107,9 @@ class DTASSIPart(PatrolStrategy):
         return float(sum(D[v, t] for t in self.task_set))
 
     def _update_tasks(self):
+        if self._tasks_of == self.best_bid.version:
+            return                  # the bids did not change: neither would the tasks
+        self._tasks_of = self.best_bid.version
         tasks = {v for v, (_, r) in self.best_bid.items() if r == self.id}
         if tasks != self.task_set:
             self.task_set = tasks
@@ -129,7 +134,10 @@ class DTASSIPart(PatrolStrategy):
         """The original's update_bids: keep the better bid (with hysteresis), refresh tasks."""
         old = self.best_bid.get(v, (NO_BID, -1))
         if old[0] >= (1.0 + self.p["hist"]) * bid:
+            synced = self._tasks_of == self.best_bid.version
             self.best_bid[v] = (bid, robot)
+            if synced and (old[1] == self.id) == (robot == self.id):
+                self._tasks_of = self.best_bid.version  # v stays in (or out of) our tasks
         self._update_tasks()
 
     # -- decisions --------------------------------------------------------------------------
@@ -252,9 +260,9 @@ class DTASSIPart(PatrolStrategy):
             return
         kind = data[1]
         if kind == MSG_DTA_IDLENESS:
-            dec = decode_idleness(data, self.graph.n)
+            dec = decode_seconds(data, self.graph.n)
             if dec is not None:
-                self.gi.merge(dec[0], now)
+                self.gi.merge_seconds(dec[0], now)
         elif kind in (MSG_SSI_TASK_REQUEST, MSG_SSI_BID) and len(data) >= 4:
             v, b = data[2], float(data[3])
             if not 0 <= v < self.graph.n:
