@@ -21,7 +21,7 @@ Not thread safe: a multi-threaded driver (rospy) calls it under one lock.
 import random
 from typing import Callable, Dict, List, Optional, Tuple
 
-from .agent_faults import ScenarioMixin, make_comm
+from .agent_faults import MIN_COMM_DELAY, ScenarioMixin, make_comm  # noqa: F401
 from .algorithms.base import (MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED,
                               Driver, PatrolStrategy, StrategyContext, create)
 
@@ -35,7 +35,6 @@ INTERFERENCE_DIST = 2.0        # m
 INTERFERENCE_PERIOD = 10.0     # s: at most one detection per period
 INTERFERENCE_PAUSE = 3.0       # s stopped after a detection
 DECISION_RETRY = 0.5           # s between two questions to a strategy that has not decided
-MIN_COMM_DELAY = 0.001         # s: smaller communication delays are not applied
 #: message types that are never delayed nor lost (start-up, visit report, interference)
 IMMEDIATE_TYPES = (MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE, MSG_FAILURE)
 #: first message type of the algorithms' own messages
@@ -193,7 +192,9 @@ class PatrolAgentCore(ScenarioMixin, Driver):
                 self.fx.end()
             return
         if data[1] >= FIRST_ALGORITHM_TYPE and self.phase in ("starting", "patrol"):
-            self._receive_results(list(data), self._deliver)
+            # no copy here: _deliver hands the strategy its own copy (a delayed message
+            # keeps the published list, which no one changes after publishing)
+            self._receive_results(data, self._deliver)
 
     def _deliver(self, data: List[int]) -> None:
         """An algorithm message the communication model let through (possibly late)."""

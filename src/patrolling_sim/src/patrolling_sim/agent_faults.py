@@ -16,6 +16,9 @@ from .algorithms.base import MSG_FAILURE
 from .comm import CommModel, parse_comm
 
 #: s between two teammate-silence checks
+#: s: smaller communication delays are not applied (delivered at once); agent_core uses it
+#: too (defined here, imported there: agent_core imports this module)
+MIN_COMM_DELAY = 0.001
 SILENCE_CHECK_PERIOD = 10.0
 #: what comm_counters() reports (this robot as the receiver)
 COUNTER_KEYS = ("sent", "delivered", "lost", "results_sent", "results_delivered",
@@ -79,7 +82,6 @@ class ScenarioMixin:
         return d
 
     def _receive_results(self, data: List[int], deliver: Callable[[List[int]], None]) -> None:
-        from .agent_core import MIN_COMM_DELAY
         if self.comm is None:
             c = self._counts
             c["sent"] += 1
@@ -97,7 +99,6 @@ class ScenarioMixin:
             deliver(data)
 
     def _receive_position(self, robot: int, x: float, y: float) -> None:
-        from .agent_core import MIN_COMM_DELAY
         self.true_pos[robot] = (x, y)
         if self.comm is None:
             self.team_pos[robot] = (x, y)
