@@ -15,6 +15,9 @@ MIN_TRIP = 0.5
 #: move_base controller's 5 Hz
 FEEDBACK_PERIOD = 0.2
 TRAVEL_MODES = ("graph", "euclidean")
+#: wall s between two flushes of the result rows (results.ResultWriter): the run's
+#: ``finally`` closes the files on any ending but SIGKILL
+WRITE_FLUSH_EVERY = 1.0
 
 
 

@@ -125,6 +125,23 @@ class _Robot(Effects):
         loc = (a, b, f0 + (f1 - f0) * r) if a is not None else self.loc
         return x, y, loc
 
+    def xy_at(self, t):
+        """(x, y) at time ``t`` of the active trip: :meth:`position` without the location
+        (the same arithmetic, so the same floats; the feedback tick's hot path)."""
+        cum = self.cum
+        total = cum[-1] if cum else 0.0
+        if total <= 0.0:
+            return self.xy
+        s = (t - self.depart) / self.duration * total
+        s = total if s > total else (0.0 if s < 0.0 else s)
+        k = bisect.bisect_left(cum, s)
+        pieces = self.pieces
+        if k >= len(pieces):
+            k = len(pieces) - 1
+        x0, y0, x1, y1, length = pieces[k][:5]
+        r = (s - (cum[k] - length)) / length if length > 0 else 1.0
+        return x0 + (x1 - x0) * r, y0 + (y1 - y0) * r
+
     def _stop(self):
         """Stand still where the robot is now; pending arrival/failure events go stale.
         The robot's last published position is where it stopped."""

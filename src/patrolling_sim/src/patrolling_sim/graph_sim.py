@@ -37,7 +37,7 @@ from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID,
 from .algorithms.base import MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from .errors import PatrolInputError
 from .graph_config import (FEEDBACK_PERIOD, MIN_TRIP, TIMERESULTS_PERIOD,  # noqa: F401
-                           TRAVEL_MODES, GraphSimConfig)
+                           TRAVEL_MODES, WRITE_FLUSH_EVERY, GraphSimConfig)
 from .graph_motion import _Robot
 from .graph import PatrolGraph
 from .monitor_core import MonitorCore, Stats
@@ -185,12 +185,9 @@ class GraphSimulator:
             return                               # superseded by an earlier wake
         t = self.t
         cur, team = self._cur, self.team_pos
-        moving = []
-        for r in self.robots:
-            if r.pieces is not None:
-                x, y, _ = r.position(t)
-                cur[r.id] = team[r.id] = (x, y)
-                moving.append(r)
+        moving = [r for r in self.robots if r.pieces is not None]
+        for r in moving:
+            cur[r.id] = team[r.id] = r.xy_at(t)
         if not self.perfect_comm:
             for r in moving:
                 self._share_position(r.id, cur[r.id])
@@ -304,7 +301,8 @@ class GraphSimulator:
                                                           cfg.robots, cfg.alg))
             self.writer = ResultWriter(self.prefix, RunInfo(
                 self.map_name, cfg.robots, cfg.initpos, cfg.gwait, cfg.comm_delay, "graph",
-                cfg.alg, "", hostname(), os.path.basename(self.prefix)))
+                cfg.alg, "", hostname(), os.path.basename(self.prefix)),
+                flush_every=WRITE_FLUSH_EVERY)
             from .startpos import write_start_poses
             write_start_poses(self.prefix + "_start_poses.txt",
                               [tuple(self.g.pos[v]) for v in self.start_vertices], self.g,
