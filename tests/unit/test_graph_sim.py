@@ -256,13 +256,19 @@ def test_deterministic_with_interference_and_failures(tmp_path):
     assert rows(a.prefix) == rows(b.prefix)
 
 
-@pytest.mark.parametrize("mapname,n,alg", [("1r5", 5, "GBS"), ("cumberland", 6, "CR")])
-def test_skipped_feedback_work_changes_nothing(monkeypatch, mapname, n, alg):
+@pytest.mark.parametrize("mapname,n,alg,seed", [
+    ("1r5", 5, "GBS", 1), ("cumberland", 6, "CR", 1),
+    # edges whose cost is below their straight length: robots move faster than `speed` in
+    # the plane (graph.max_stretch 2.25); a bound at `speed` found this interference late
+    ("move_base_arena", 12, "RAND", 0),
+    ("DIAG_labs", 12, "DTAP", 1)])
+def test_skipped_feedback_work_changes_nothing(monkeypatch, mapname, n, alg, seed):
     """The simulator skips feedback ticks and interference checks that cannot find
     anything; simulating every tick and asking every core gives the same messages."""
     out = []
     for lazy in (True, False):
-        cfg = GraphSimConfig(map=mapname, robots=n, alg=alg, duration=900, seed=1)
+        cfg = GraphSimConfig(map=mapname, robots=n, alg=alg, seed=seed,
+                             duration=2100 if mapname == "move_base_arena" else 900)
         sim = GraphSimulator(cfg)
         sim.skip_idle_ticks = lazy
         rec, publish = [], sim.publish

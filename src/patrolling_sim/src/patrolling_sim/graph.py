@@ -314,6 +314,17 @@ class PatrolGraph:
         """Cheapest cost (px) of an edge u->w, or None if not adjacent."""
         return self._arc.get((u, w))
 
+    def max_stretch(self):
+        """Largest ratio of an edge's straight length to its cost (both in metres), at least
+        1: a robot driven along the graph at ``speed`` (cost per second) moves at most
+        ``speed * max_stretch()`` in the plane. inf if an edge of cost 0 joins two places."""
+        worst = 1.0
+        for (u, w), c in self._arc.items():
+            length = math.hypot(*(self.pos[w] - self.pos[u]))
+            if length > 0.0:
+                worst = max(worst, length / (c * self.resolution) if c > 0 else math.inf)
+        return worst
+
     def edge_costs(self):
         """All directed edge costs (px), one per neighbour entry."""
         return [c for u in range(self.n) for _, c in self.neighbors[u]]

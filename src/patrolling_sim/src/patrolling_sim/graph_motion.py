@@ -65,7 +65,7 @@ class _Robot(Effects):
             cum.append(total)
         self.pieces, self.cum, self.depart = pieces, cum, sim.t
         self.duration = max(MIN_TRIP, total / sim.cfg.speed)
-        sim.wake()
+        sim.wake(self.id)
         if sim.cfg.goal_fail > 0 and sim.rng.random() < sim.cfg.goal_fail:
             sim.schedule(sim.t + sim.rng.random() * self.duration,
                          lambda: self._failed(token, seq))

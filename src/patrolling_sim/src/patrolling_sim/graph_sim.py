@@ -32,19 +32,20 @@ import time
 from typing import Callable, Optional, Sequence
 
 from . import paths, run_status
-from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID,
+from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID,  # noqa: F401
                          build_agent)
 from .algorithms.base import MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from .errors import PatrolInputError
 from .graph_config import (FEEDBACK_PERIOD, MIN_TRIP, TIMERESULTS_PERIOD,  # noqa: F401
                            TRAVEL_MODES, WRITE_FLUSH_EVERY, GraphSimConfig)
+from .graph_feedback import FeedbackTicks
 from .graph_motion import _Robot
 from .graph import PatrolGraph
 from .monitor_core import MonitorCore, Stats
 from .results import (ResultWriter, RunInfo, claim_prefix, default_prefix,  # noqa: F401
                       hostname, timestamp)
 
-class GraphSimulator:
+class GraphSimulator(FeedbackTicks):
     """One run. Use :meth:`run`; see the module docstring for the model."""
 
     def __init__(self, cfg: GraphSimConfig, start_vertices: Optional[Sequence[int]] = None,
@@ -72,8 +73,12 @@ class GraphSimulator:
         self.skip_idle_ticks = True
         self._cur = [r.xy for r in self.robots]      # where each robot is (at the last tick)
         self._tick = math.inf
-        self._bound_wait = 0                          # ticks until the skip bound is computed
-        self._bound_backoff = 1
+        #: per robot, the next feedback tick at which it must be evaluated (_feedback_lazy)
+        self._due = [math.inf] * cfg.robots
+        #: most two robots can close in on each other in one tick (m): a robot moves along
+        #: the graph at ``speed`` cost per second, which is faster in the plane where an
+        #: edge's cost is below its straight length (graph.max_stretch)
+        self._closing_per_tick = 2.0 * cfg.speed * FEEDBACK_PERIOD * pgraph.max_stretch()
         self.prefix = prefix
         self.log = log or (lambda s: None)
         self.termination = None
@@ -150,94 +155,26 @@ class GraphSimulator:
         elif kind == MSG_INTERFERENCE:
             self.monitor.interference(sender, self.t)
         elif kind != MSG_INIT:
-            for r in self.robots:
-                if r.id != sender:
-                    self.schedule(self.t, lambda r=r: r.core.on_results(data))
+            self.schedule(self.t, lambda: self._broadcast(sender, data))
+
+    def _broadcast(self, sender, data):
+        """``data`` reaches every other robot, in id order. One event for all receivers is
+        the same as one event each: those would have consecutive sequence numbers, so no
+        other event runs between them (what a receiver schedules at this time runs after the
+        last receiver); the run loop's cycle limit is checked after each receiver, as it
+        would be after each event."""
+        cycles = self.cfg.cycles
+        for r in self.robots:
+            if r.id != sender:
+                r.core.on_results(data)
+                if cycles and self.monitor.cycles >= cycles:
+                    return
 
     def stood(self, robot):
         """``robot`` stopped at ``robot.xy``: that is its last published position."""
         self.team_pos[robot.id] = self._cur[robot.id] = robot.xy
         if not self.perfect_comm:
             self._share_position(robot.id, robot.xy)
-
-    def wake(self):
-        """A robot started a trip: the next feedback tick must not be later than the next
-        one of the FEEDBACK_PERIOD lattice."""
-        if not self.cfg.interference:
-            return
-        k = int(self.t / FEEDBACK_PERIOD) + 1
-        if k < self._tick:
-            self._tick = k
-            self.schedule(k * FEEDBACK_PERIOD, lambda: self._feedback(k))
-
-    def _feedback(self, k):
-        """Navigation feedback at tick ``k`` (time k * FEEDBACK_PERIOD, move_base's 5 Hz):
-        every moving robot publishes its position, then evaluates interference.
-
-        Only the work that can find something is done: a robot in its 10 s quiet period,
-        or farther than INTERFERENCE_DIST from every published position of a lower id, would
-        find nothing, so its core is not asked; and since no robot moves faster than
-        ``speed``, no pair with a moving robot comes within INTERFERENCE_DIST for
-        (d - INTERFERENCE_DIST) / (closing speed) s, so those ticks are skipped (a robot
-        starting a trip wakes the next tick). Results are the same as with every tick
-        simulated and every core asked (``skip_idle_ticks = False``, checked by a test)."""
-        if k != self._tick:
-            return                               # superseded by an earlier wake
-        t = self.t
-        cur, team = self._cur, self.team_pos
-        moving = [r for r in self.robots if r.pieces is not None]
-        for r in moving:
-            cur[r.id] = team[r.id] = r.xy_at(t)
-        if not self.perfect_comm:
-            for r in moving:
-                self._share_position(r.id, cur[r.id])
-        lazy = self.skip_idle_ticks
-        d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
-        for r in moving:
-            core = r.core
-            x, y = cur[r.id]
-            if lazy:
-                if t - core.last_interference < INTERFERENCE_PERIOD:
-                    continue
-                for j in range(r.id):
-                    p = team.get(j)
-                    if p is not None and (p[0] - x) ** 2 + (p[1] - y) ** 2 <= d2max:
-                        break
-                else:
-                    continue
-            core.on_feedback(r.seq, x, y)
-        moving = [r.id for r in moving if r.pieces is not None]
-        if not moving:
-            self._tick = math.inf                # nobody moves: the next trip wakes us
-            return
-        skip = 1
-        self._bound_wait -= 1
-        if lazy and self._bound_wait <= 0:
-            # closest (moving, moving) and (moving, standing) pairs
-            is_moving = [r.pieces is not None for r in self.robots]
-            mm = ms = math.inf
-            for i in moving:
-                x, y = cur[i]
-                for j, (qx, qy) in enumerate(cur):
-                    if j != i:
-                        d2 = (qx - x) ** 2 + (qy - y) ** 2
-                        if is_moving[j]:
-                            if d2 < mm:
-                                mm = d2
-                        elif d2 < ms:
-                            ms = d2
-            v = self.cfg.speed
-            horizon = min((math.sqrt(mm) - INTERFERENCE_DIST) / (2 * v),
-                          (math.sqrt(ms) - INTERFERENCE_DIST) / v)
-            if horizon == math.inf:              # a team of one
-                self._tick = math.inf
-                return
-            skip = max(1, int(horizon / FEEDBACK_PERIOD))
-            # robots close together: the bound will not help for a while, ask less often
-            self._bound_backoff = 1 if skip > 1 else min(16, 2 * self._bound_backoff)
-            self._bound_wait = self._bound_backoff
-        self._tick = k + skip
-        self.schedule(self._tick * FEEDBACK_PERIOD, lambda: self._feedback(k + skip))
 
     # -- monitor ----------------------------------------------------------------------------
     def _report(self, rid, v):

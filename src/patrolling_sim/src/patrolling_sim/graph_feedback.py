@@ -1,0 +1,127 @@
+"""The navigation feedback of the graph world (:mod:`patrolling_sim.graph_sim`), its one job:
+at every tick of the FEEDBACK_PERIOD lattice (move_base's 5 Hz) each moving robot publishes
+its position and its core evaluates interference against the robots of lower id
+(``docs/protocol.md``, "Graph mode"). By default only the ticks and checks that can find an
+interference are simulated; the results are those of simulating every tick (a test checks).
+
+:class:`FeedbackTicks` is a mixin of :class:`~patrolling_sim.graph_sim.GraphSimulator`; it
+uses the simulator's ``t``, ``cfg``, ``robots``, ``team_pos``, ``_cur``, ``_due``,
+``_tick``, ``_closing_per_tick``, ``perfect_comm``, ``skip_idle_ticks``, :meth:`schedule`
+and :meth:`_share_position`.
+"""
+import math
+
+from .agent_core import INTERFERENCE_DIST, INTERFERENCE_PERIOD
+from .graph_config import FEEDBACK_PERIOD
+
+
+class FeedbackTicks:
+    """Feedback ticks and interference evaluation of the graph world."""
+
+    def wake(self, rid):
+        """Robot ``rid`` started a trip: it is due at the next tick of the FEEDBACK_PERIOD
+        lattice (its first published position), and that tick must not be skipped."""
+        if not self.cfg.interference:
+            return
+        k = int(self.t / FEEDBACK_PERIOD) + 1
+        if k < self._due[rid]:
+            self._due[rid] = k
+        if k < self._tick:
+            self._tick = k
+            self.schedule(k * FEEDBACK_PERIOD, lambda: self._feedback(k))
+
+    def _feedback(self, k):
+        """Navigation feedback at tick ``k`` (time k * FEEDBACK_PERIOD, move_base's 5 Hz):
+        every moving robot publishes its position, then evaluates interference against the
+        published positions of the robots with a lower id (docs/protocol.md, "Graph mode").
+
+        With ``skip_idle_ticks`` (the default; perfect communication) only the work that can
+        find something is done (:meth:`_feedback_lazy`); ``skip_idle_ticks = False`` simulates
+        every tick and asks every core (the definition; a test checks both give the same
+        messages)."""
+        if k != self._tick:
+            return                               # superseded by an earlier wake
+        if self.skip_idle_ticks:
+            self._feedback_lazy(k)
+            return
+        t = self.t
+        cur, team = self._cur, self.team_pos
+        moving = [r for r in self.robots if r.pieces is not None]
+        for r in moving:
+            cur[r.id] = team[r.id] = r.xy_at(t)
+        if not self.perfect_comm:
+            for r in moving:
+                self._share_position(r.id, cur[r.id])
+        for r in moving:
+            x, y = cur[r.id]
+            r.core.on_feedback(r.seq, x, y)
+        if any(r.pieces is not None for r in self.robots):
+            self._tick = k + 1
+            self.schedule(self._tick * FEEDBACK_PERIOD, lambda: self._feedback(k + 1))
+        else:
+            self._tick = math.inf                # nobody moves: the next trip wakes us
+
+    def _feedback_lazy(self, k):
+        """Tick ``k`` doing only the work that can find an interference. Each moving robot i
+        has a due tick: until then no robot of a lower id can come within INTERFERENCE_DIST
+        of it (no robot moves faster than ``speed``, so a pair at distance d needs at least
+        (d - INTERFERENCE_DIST) / (2 speed) s), or it is in its 10 s quiet period. A due
+        robot publishes its position, the moving robots of lower id publish theirs (the
+        values a full tick would publish), its core is asked only if one of them is within
+        INTERFERENCE_DIST, and its next due tick is computed. A robot starting a trip is due
+        at the next tick (:meth:`wake`). Ticks at which no robot is due are not simulated.
+
+        Why not one bound for the whole team: on a map with 12 robots some pair is almost
+        always close, which made every tick a full one (a fifth of a reference run's CPU)."""
+        t = self.t
+        robots, due = self.robots, self._due
+        cur, team = self._cur, self.team_pos
+        d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
+        per_tick = self._closing_per_tick
+        fresh = {}                                # rid -> position at this tick (moving)
+        for r in robots:
+            i = r.id
+            if due[i] > k:
+                continue
+            if r.pieces is None:
+                due[i] = math.inf
+                continue
+            xy = fresh.get(i)
+            if xy is None:
+                xy = fresh[i] = cur[i] = team[i] = r.xy_at(t)
+            core = r.core
+            last = core.last_interference
+            if t - last < INTERFERENCE_PERIOD:
+                # quiet: nothing to evaluate before the period ends (one tick early, so a
+                # rounding of k * FEEDBACK_PERIOD cannot skip the first tick it may act)
+                due[i] = max(k + 1, int((last + INTERFERENCE_PERIOD) / FEEDBACK_PERIOD) - 1)
+                continue
+            x, y = xy
+            near = False                          # a published position within reach
+            dmin2 = math.inf                      # closest lower id, true positions
+            for j in range(i):
+                rj = robots[j]
+                if rj.pieces is not None:
+                    p = fresh.get(j)
+                    if p is None:
+                        p = fresh[j] = cur[j] = team[j] = rj.xy_at(t)
+                    published = True
+                else:
+                    p = rj.xy                     # standing: where it stood (published) or
+                    published = j in team         # where it starts (not yet published)
+                d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
+                if d2 < dmin2:
+                    dmin2 = d2
+                if published and d2 <= d2max:
+                    near = True
+            if near:
+                core.on_feedback(r.seq, x, y)
+                due[i] = k + 1
+            elif dmin2 == math.inf:               # no lower id: nothing to evaluate
+                due[i] = math.inf
+            else:
+                due[i] = k + max(1, int((math.sqrt(dmin2) - INTERFERENCE_DIST) / per_tick))
+        nxt = min((due[r.id] for r in robots if r.pieces is not None), default=math.inf)
+        self._tick = nxt
+        if nxt < math.inf:
+            self.schedule(nxt * FEEDBACK_PERIOD, lambda: self._feedback(nxt))
