@@ -199,9 +199,10 @@ class PatrolAgentCore(ScenarioMixin, Driver):
     def _deliver(self, data: List[int]) -> None:
         """An algorithm message the communication model let through (possibly late)."""
         if self.phase in ("starting", "patrol") and not self.failed:
-            self.heard(data[0], self.fx.now())
+            now = self.fx.now()
+            self.heard(data[0], now)
             if self.started:
-                self.strategy.on_message(list(data), self.fx.now())
+                self.strategy.on_message(list(data), now)
             else:
                 self.pending_msgs.append(list(data))
 

@@ -60,6 +60,8 @@ class ScenarioMixin:
         self.last_heard: Dict[int, float] = {}
         self.silent: set = set()
         self._counts = dict.fromkeys(COUNTER_KEYS, 0)
+        #: algorithm messages received without a model (each: sent and delivered)
+        self._perfect_results = 0
 
     # -- receiving through the model ----------------------------------------------------------
     def _true_position(self, robot: int):
@@ -83,11 +85,7 @@ class ScenarioMixin:
 
     def _receive_results(self, data: List[int], deliver: Callable[[List[int]], None]) -> None:
         if self.comm is None:
-            c = self._counts
-            c["sent"] += 1
-            c["delivered"] += 1
-            c["results_sent"] += 1
-            c["results_delivered"] += 1
+            self._perfect_results += 1            # counted in comm_counters()
             deliver(data)
             return
         d = self._link("results", int(data[0]))
@@ -122,6 +120,8 @@ class ScenarioMixin:
         """Messages this robot received through the model (see :data:`COUNTER_KEYS`);
         ``sender_lost`` counts its own algorithm messages lost by the old ``--loss`` rate."""
         out = dict(self._counts)
+        for key in ("sent", "delivered", "results_sent", "results_delivered"):
+            out[key] += self._perfect_results
         out["sender_lost"] = self.messages_lost
         return out
 

@@ -13,6 +13,55 @@ from typing import Dict, List
 
 import yaml
 
+class WorldCache:
+    """Patrol graphs (per map) and start vertices (per map, team size and initpos; and
+    algorithm for "optimised"), built once per worker process: a campaign runs the same few
+    worlds hundreds of times, and loading the map image, its clearance and the start
+    positions was a tenth of a run's CPU time. Keyed on the files read (path, size, mtime),
+    so an edited file is loaded again. A graph is shared read-only by the runs of its map
+    (its shortest-path tables, computed on first use, are kept); every run builds its own
+    agents and monitor."""
+
+    def __init__(self, size: int = 4096):
+        self.size = size
+        self._graphs = {}
+        self._starts = {}
+
+    @staticmethod
+    def _stamp(path):
+        st = os.stat(path)
+        return (path, st.st_size, st.st_mtime_ns)
+
+    def _put(self, table, key, value):
+        if len(table) >= self.size:
+            table.pop(next(iter(table)))
+        table[key] = value
+        return value
+
+    def get(self, cfg):
+        """(PatrolGraph, start vertices) of the GraphSimConfig ``cfg``."""
+        from . import paths
+        from .graph import PatrolGraph
+        from .graph_sim import GraphSimulator
+        from .initial_poses import OPTIMISED
+        yaml_path, graph_path = paths.map_files(cfg.map)
+        gkey = self._stamp(graph_path)
+        g = self._graphs.get(gkey)
+        if g is None:
+            g = self._put(self._graphs, gkey, PatrolGraph.load(graph_path))
+        skey = (self._stamp(yaml_path), gkey, self._stamp(paths.initial_poses_file()),
+                cfg.robots, cfg.initpos, cfg.alg if cfg.initpos == OPTIMISED else None)
+        starts = self._starts.get(skey)
+        if starts is None:
+            sim = GraphSimulator(cfg, pgraph=g)      # computes the start vertices
+            starts = self._put(self._starts, skey, tuple(sim.start_vertices))
+        return g, starts
+
+
+#: one per worker process (Dask keeps the module between runs)
+_WORLDS = WorldCache()
+
+
 def _read_tree(root: str) -> Dict[str, str]:
     out = {}
     for d, _, files in os.walk(root):
@@ -94,7 +143,9 @@ def run_graph_task(config: dict) -> dict:
     wall = time.monotonic()
     cpu = time.thread_time()
     with tempfile.TemporaryDirectory(prefix="campaign_", dir=_tmp_root()) as tmp:
-        sim = GraphSimulator(GraphSimConfig(**dict(config, results_dir=tmp)))
+        cfg = GraphSimConfig(**dict(config, results_dir=tmp))
+        g, starts = _WORLDS.get(cfg)
+        sim = GraphSimulator(cfg, start_vertices=starts, pgraph=g)
         sim.run(write=True)                    # the writer keeps the visit log too
         prefix = os.path.relpath(sim.prefix, tmp)
         files = _read_tree(tmp)

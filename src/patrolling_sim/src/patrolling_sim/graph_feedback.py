@@ -64,8 +64,9 @@ class FeedbackTicks:
     def _feedback_lazy(self, k):
         """Tick ``k`` doing only the work that can find an interference. Each moving robot i
         has a due tick: until then no robot of a lower id can come within INTERFERENCE_DIST
-        of it (no robot moves faster than ``speed``, so a pair at distance d needs at least
-        (d - INTERFERENCE_DIST) / (2 speed) s), or it is in its 10 s quiet period. A due
+        of it (no robot moves faster than v = ``speed`` x graph.max_stretch() in the plane,
+        so a pair at distance d needs at least (d - INTERFERENCE_DIST) / (2 v) s), or it is
+        in its 10 s quiet period. A due
         robot publishes its position, the moving robots of lower id publish theirs (the
         values a full tick would publish), its core is asked only if one of them is within
         INTERFERENCE_DIST, and its next due tick is computed. A robot starting a trip is due
@@ -79,12 +80,15 @@ class FeedbackTicks:
         d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
         per_tick = self._closing_per_tick
         fresh = {}                                # rid -> position at this tick (moving)
+        nxt = math.inf                            # the next tick any moving robot is due
         for r in robots:
             i = r.id
-            if due[i] > k:
-                continue
             if r.pieces is None:
                 due[i] = math.inf
+                continue
+            if due[i] > k:
+                if due[i] < nxt:
+                    nxt = due[i]
                 continue
             xy = fresh.get(i)
             if xy is None:
@@ -95,6 +99,8 @@ class FeedbackTicks:
                 # quiet: nothing to evaluate before the period ends (one tick early, so a
                 # rounding of k * FEEDBACK_PERIOD cannot skip the first tick it may act)
                 due[i] = max(k + 1, int((last + INTERFERENCE_PERIOD) / FEEDBACK_PERIOD) - 1)
+                if due[i] < nxt:
+                    nxt = due[i]
                 continue
             x, y = xy
             near = False                          # a published position within reach
@@ -116,12 +122,14 @@ class FeedbackTicks:
                     near = True
             if near:
                 core.on_feedback(r.seq, x, y)
-                due[i] = k + 1
+                # an interference stops it (a later trip wakes it)
+                due[i] = k + 1 if r.pieces is not None else math.inf
             elif dmin2 == math.inf:               # no lower id: nothing to evaluate
                 due[i] = math.inf
             else:
                 due[i] = k + max(1, int((math.sqrt(dmin2) - INTERFERENCE_DIST) / per_tick))
-        nxt = min((due[r.id] for r in robots if r.pieces is not None), default=math.inf)
+            if due[i] < nxt:
+                nxt = due[i]
         self._tick = nxt
         if nxt < math.inf:
             self.schedule(nxt * FEEDBACK_PERIOD, lambda: self._feedback(nxt))

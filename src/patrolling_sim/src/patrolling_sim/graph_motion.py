@@ -98,8 +98,14 @@ class _Robot(Effects):
                 end, first = a, (x, y, *g.pos[a], f * length, a, b, f, 0.0)
             return [first] + self._edge_pieces(g.path(end, goal))
         start = b if (a != b and f >= 1.0) else a
-        path = g.path(start, goal)
-        return None if path is None else self._edge_pieces(path)
+        # a trip between two vertices is the same every time: built once per run (the
+        # pieces are tuples, never changed; a trip only reads them)
+        cache = self.sim.trip_cache
+        pieces = cache.get((start, goal), False)
+        if pieces is False:
+            path = g.path(start, goal)
+            pieces = cache[(start, goal)] = None if path is None else self._edge_pieces(path)
+        return pieces
 
     def _edge_pieces(self, path):
         g = self.sim.g

@@ -73,6 +73,8 @@ class GraphSimulator(FeedbackTicks):
         self.skip_idle_ticks = True
         self._cur = [r.xy for r in self.robots]      # where each robot is (at the last tick)
         self._tick = math.inf
+        #: (start vertex, goal) -> the pieces of that trip (graph_motion._Robot._route)
+        self.trip_cache = {}
         #: per robot, the next feedback tick at which it must be evaluated (_feedback_lazy)
         self._due = [math.inf] * cfg.robots
         #: most two robots can close in on each other in one tick (m): a robot moves along

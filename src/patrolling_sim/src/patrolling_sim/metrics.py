@@ -17,6 +17,7 @@ Pure: no ROS, no files (:func:`read_visits` / :func:`write_metrics` are the file
 """
 import csv
 import math
+from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
@@ -74,15 +75,18 @@ def _time_avg_max(visit_times: List[List[float]], duration: float) -> float:
     if duration <= 0:
         return 0.0
     events = sorted((t, v) for v, ts in enumerate(visit_times) for t in ts if t <= duration)
-    last = np.zeros(len(visit_times))
+    # the vertices in the order of their last visit (events come in time order, so the first
+    # is the oldest): the minimum in O(1) per event instead of a scan of every vertex
+    last = OrderedDict((v, 0.0) for v in range(len(visit_times)))
     area, t_prev = 0.0, 0.0
     for t, v in events + [(duration, None)]:
-        oldest = float(last.min())
+        oldest = last[next(iter(last))] if last else 0.0
         # idleness of the oldest vertex grows from t_prev - oldest to t - oldest
         a, b = t_prev - oldest, t - oldest
         area += (a + b) / 2.0 * (t - t_prev)
         if v is not None:
             last[v] = t
+            last.move_to_end(v)
         t_prev = t
     return area / duration
 
