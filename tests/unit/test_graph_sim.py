@@ -261,14 +261,18 @@ def test_deterministic_with_interference_and_failures(tmp_path):
     # edges whose cost is below their straight length: robots move faster than `speed` in
     # the plane (graph.max_stretch 2.25); a bound at `speed` found this interference late
     ("move_base_arena", 12, "RAND", 0),
-    ("DIAG_labs", 12, "DTAP", 1)])
+    ("DIAG_labs", 12, "DTAP", 1),
+    # an arrival at exactly a tick's time (t = 1029.0 s): the tick must come after it
+    # whenever the tick was scheduled (a tick scheduled ahead came first: a false interference)
+    ("DIAG_labs", 4, "GBS", 2)])
 def test_skipped_feedback_work_changes_nothing(monkeypatch, mapname, n, alg, seed):
     """The simulator skips feedback ticks and interference checks that cannot find
     anything; simulating every tick and asking every core gives the same messages."""
     out = []
     for lazy in (True, False):
         cfg = GraphSimConfig(map=mapname, robots=n, alg=alg, seed=seed,
-                             duration=2100 if mapname == "move_base_arena" else 900)
+                             duration={"move_base_arena": 2100, "DIAG_labs": 1100}.get(
+                                 mapname, 900))
         sim = GraphSimulator(cfg)
         sim.skip_idle_ticks = lazy
         rec, publish = [], sim.publish
@@ -278,3 +282,11 @@ def test_skipped_feedback_work_changes_nothing(monkeypatch, mapname, n, alg, see
         out.append(rec)
     assert sum(1 for _, _, d in out[0] if d[1] == 12) > 0
     assert out[0] == out[1]
+
+
+def test_first_tick_at_is_the_first_lattice_point_not_before_t():
+    from patrolling_sim.graph_feedback import first_tick_at
+    from patrolling_sim.graph_config import FEEDBACK_PERIOD as P
+    for t in (0.0, 0.1, 0.2, 1029.0, 1029.0000001, 5145 * P, 5145 * P + 1e-12, 7.3, 3599.9):
+        k = first_tick_at(t)
+        assert k * P >= t and (k == 0 or (k - 1) * P < t), (t, k)

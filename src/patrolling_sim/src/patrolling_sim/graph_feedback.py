@@ -6,8 +6,8 @@ interference are simulated; the results are those of simulating every tick (a te
 
 :class:`FeedbackTicks` is a mixin of :class:`~patrolling_sim.graph_sim.GraphSimulator`; it
 uses the simulator's ``t``, ``cfg``, ``robots``, ``team_pos``, ``_cur``, ``_due``,
-``_tick``, ``_closing_per_tick``, ``perfect_comm``, ``skip_idle_ticks``, :meth:`schedule`
-and :meth:`_share_position`.
+``_tick``, ``_last_tick``, ``_closing_per_tick``, ``perfect_comm``, ``skip_idle_ticks`` and
+:meth:`_share_position`; the run loop calls :meth:`next_tick_time` and :meth:`run_tick`.
 """
 import math
 
@@ -15,35 +15,57 @@ from .agent_core import INTERFERENCE_DIST, INTERFERENCE_PERIOD
 from .graph_config import FEEDBACK_PERIOD
 
 
+def first_tick_at(t):
+    """The first k with k * FEEDBACK_PERIOD >= t, as the floats compute it."""
+    k = max(0, int(t / FEEDBACK_PERIOD))
+    while k * FEEDBACK_PERIOD < t:
+        k += 1
+    while k > 0 and (k - 1) * FEEDBACK_PERIOD >= t:
+        k -= 1
+    return k
+
+
 class FeedbackTicks:
     """Feedback ticks and interference evaluation of the graph world."""
 
     def wake(self, rid):
-        """Robot ``rid`` started a trip: it is due at the next tick of the FEEDBACK_PERIOD
-        lattice (its first published position), and that tick must not be skipped."""
+        """Robot ``rid`` started a trip: it is due at the first tick not yet run whose time is
+        not before now (its first published position), and that tick must be run."""
         if not self.cfg.interference:
             return
-        k = int(self.t / FEEDBACK_PERIOD) + 1
+        k = max(self._last_tick + 1, first_tick_at(self.t))
         if k < self._due[rid]:
             self._due[rid] = k
         if k < self._tick:
             self._tick = k
-            self.schedule(k * FEEDBACK_PERIOD, lambda: self._feedback(k))
 
-    def _feedback(self, k):
-        """Navigation feedback at tick ``k`` (time k * FEEDBACK_PERIOD, move_base's 5 Hz):
-        every moving robot publishes its position, then evaluates interference against the
-        published positions of the robots with a lower id (docs/protocol.md, "Graph mode").
+    def next_tick_time(self):
+        """Sim time of the next feedback tick (inf if none is due). The run loop runs it
+        after every event of the same time (arrivals, timers, messages), so the order of a
+        tick and an event at the same time does not depend on when either was scheduled."""
+        return self._tick * FEEDBACK_PERIOD if self._tick != math.inf else math.inf
+
+    def run_tick(self):
+        """Navigation feedback at tick ``k = self._tick`` (time k * FEEDBACK_PERIOD,
+        move_base's 5 Hz): every moving robot publishes its position, then evaluates
+        interference against the published positions of the robots with a lower id
+        (docs/protocol.md, "Graph mode").
 
         With ``skip_idle_ticks`` (the default; perfect communication) only the work that can
-        find something is done (:meth:`_feedback_lazy`); ``skip_idle_ticks = False`` simulates
+        find something is done (:meth:`_feedback_lazy`); ``skip_idle_ticks = False`` runs
         every tick and asks every core (the definition; a test checks both give the same
         messages)."""
-        if k != self._tick:
-            return                               # superseded by an earlier wake
+        k = self._tick
+        self._last_tick = k
+        self._tick = math.inf                     # a trip started during the tick lowers it
         if self.skip_idle_ticks:
-            self._feedback_lazy(k)
-            return
+            nxt = self._feedback_lazy(k)
+        else:
+            nxt = self._feedback_full(k)
+        if nxt < self._tick:
+            self._tick = nxt
+
+    def _feedback_full(self, k):
         t = self.t
         cur, team = self._cur, self.team_pos
         moving = [r for r in self.robots if r.pieces is not None]
@@ -55,11 +77,8 @@ class FeedbackTicks:
         for r in moving:
             x, y = cur[r.id]
             r.core.on_feedback(r.seq, x, y)
-        if any(r.pieces is not None for r in self.robots):
-            self._tick = k + 1
-            self.schedule(self._tick * FEEDBACK_PERIOD, lambda: self._feedback(k + 1))
-        else:
-            self._tick = math.inf                # nobody moves: the next trip wakes us
+        # nobody moves: no tick until the next trip wakes us
+        return k + 1 if any(r.pieces is not None for r in self.robots) else math.inf
 
     def _feedback_lazy(self, k):
         """Tick ``k`` doing only the work that can find an interference. Each moving robot i
@@ -130,6 +149,4 @@ class FeedbackTicks:
                 due[i] = k + max(1, int((math.sqrt(dmin2) - INTERFERENCE_DIST) / per_tick))
             if due[i] < nxt:
                 nxt = due[i]
-        self._tick = nxt
-        if nxt < math.inf:
-            self.schedule(nxt * FEEDBACK_PERIOD, lambda: self._feedback(nxt))
+        return nxt

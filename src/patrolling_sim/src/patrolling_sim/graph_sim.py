@@ -72,7 +72,8 @@ class GraphSimulator(FeedbackTicks):
         #: skip feedback work that cannot find an interference (same results, faster)
         self.skip_idle_ticks = True
         self._cur = [r.xy for r in self.robots]      # where each robot is (at the last tick)
-        self._tick = math.inf
+        self._tick = math.inf                         # next feedback tick (the first trip)
+        self._last_tick = -1                          # last tick run
         #: (start vertex, goal) -> the pieces of that trip (graph_motion._Robot._route)
         self.trip_cache = {}
         #: per robot, the next feedback tick at which it must be evaluated (_feedback_lazy)
@@ -260,11 +261,17 @@ class GraphSimulator(FeedbackTicks):
                 self.schedule(f.t, lambda k=f.robot: self._fail(k))
                 if f.back is not None:
                     self.schedule(f.back, lambda k=f.robot: self._repair(k))
-            self._tick = math.inf                # feedback ticks start with the first trip
             end = cfg.duration if cfg.duration > 0 else float("inf")
             self.termination = "TIMEOUT"
-            while self._events:
-                t, _, fn = heapq.heappop(self._events)
+            events = self._events
+            while True:
+                tick_t = self.next_tick_time()   # ticks run after same-time events
+                if events and events[0][0] <= tick_t:
+                    t, _, fn = heapq.heappop(events)
+                elif tick_t < math.inf:
+                    t, fn = tick_t, self.run_tick
+                else:
+                    break
                 if t > end:
                     break
                 self.t = t
