@@ -42,8 +42,9 @@ class WorldCache:
         """(PatrolGraph, start vertices) of the GraphSimConfig ``cfg``."""
         from . import paths
         from .graph import PatrolGraph
-        from .graph_sim import GraphSimulator
+        from .graph_sim import start_vertices_of
         from .initial_poses import OPTIMISED
+        cfg.validate()                           # as the run's GraphSimulator would, first
         yaml_path, graph_path = paths.map_files(cfg.map)
         gkey = self._stamp(graph_path)
         g = self._graphs.get(gkey)
@@ -53,8 +54,7 @@ class WorldCache:
                 cfg.robots, cfg.initpos, cfg.alg if cfg.initpos == OPTIMISED else None)
         starts = self._starts.get(skey)
         if starts is None:
-            sim = GraphSimulator(cfg, pgraph=g)      # computes the start vertices
-            starts = self._put(self._starts, skey, tuple(sim.start_vertices))
+            starts = self._put(self._starts, skey, tuple(start_vertices_of(cfg, g)))
         return g, starts
 
 

@@ -5,7 +5,7 @@ its position and its core evaluates interference against the robots of lower id
 interference are simulated; the results are those of simulating every tick (a test checks).
 
 :class:`FeedbackTicks` is a mixin of :class:`~patrolling_sim.graph_sim.GraphSimulator`; it
-uses the simulator's ``t``, ``cfg``, ``robots``, ``team_pos``, ``_cur``, ``_due``,
+uses the simulator's ``t``, ``cfg``, ``robots``, ``team_pos``, ``_due``,
 ``_tick``, ``_last_tick``, ``_closing_per_tick``, ``perfect_comm``, ``skip_idle_ticks`` and
 :meth:`_share_position`; the run loop calls :meth:`next_tick_time` and :meth:`run_tick`.
 """
@@ -66,16 +66,15 @@ class FeedbackTicks:
             self._tick = nxt
 
     def _feedback_full(self, k):
-        t = self.t
-        cur, team = self._cur, self.team_pos
+        t, team = self.t, self.team_pos
         moving = [r for r in self.robots if r.pieces is not None]
         for r in moving:
-            cur[r.id] = team[r.id] = r.xy_at(t)
+            team[r.id] = r.xy_at(t)
         if not self.perfect_comm:
             for r in moving:
-                self._share_position(r.id, cur[r.id])
+                self._share_position(r.id, team[r.id])
         for r in moving:
-            x, y = cur[r.id]
+            x, y = team[r.id]
             r.core.on_feedback(r.seq, x, y)
         # nobody moves: no tick until the next trip wakes us
         return k + 1 if any(r.pieces is not None for r in self.robots) else math.inf
@@ -95,7 +94,7 @@ class FeedbackTicks:
         always close, which made every tick a full one (a fifth of a reference run's CPU)."""
         t = self.t
         robots, due = self.robots, self._due
-        cur, team = self._cur, self.team_pos
+        team = self.team_pos
         d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
         per_tick = self._closing_per_tick
         fresh = {}                                # rid -> position at this tick (moving)
@@ -111,7 +110,7 @@ class FeedbackTicks:
                 continue
             xy = fresh.get(i)
             if xy is None:
-                xy = fresh[i] = cur[i] = team[i] = r.xy_at(t)
+                xy = fresh[i] = team[i] = r.xy_at(t)
             core = r.core
             last = core.last_interference
             if t - last < INTERFERENCE_PERIOD:
@@ -129,7 +128,7 @@ class FeedbackTicks:
                 if rj.pieces is not None:
                     p = fresh.get(j)
                     if p is None:
-                        p = fresh[j] = cur[j] = team[j] = rj.xy_at(t)
+                        p = fresh[j] = team[j] = rj.xy_at(t)
                     published = True
                 else:
                     p = rj.xy                     # standing: where it stood (published) or

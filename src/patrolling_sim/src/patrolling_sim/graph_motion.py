@@ -117,35 +117,39 @@ class _Robot(Effects):
                         u, w, 0.0, 1.0))
         return out
 
-    def position(self, t):
-        """(x, y, loc) at time ``t`` of the active trip."""
-        total = self.cum[-1] if self.cum else 0.0
-        if total <= 0.0:
-            return self.xy[0], self.xy[1], self.loc
-        s = min(total, max(0.0, (t - self.depart) / self.duration * total))
-        k = min(bisect.bisect_left(self.cum, s), len(self.pieces) - 1)
-        x0, y0, x1, y1, length, a, b, f0, f1 = self.pieces[k]
-        into = s - (self.cum[k] - length)
-        r = into / length if length > 0 else 1.0
-        x, y = x0 + (x1 - x0) * r, y0 + (y1 - y0) * r
-        loc = (a, b, f0 + (f1 - f0) * r) if a is not None else self.loc
-        return x, y, loc
-
-    def xy_at(self, t):
-        """(x, y) at time ``t`` of the active trip: :meth:`position` without the location
-        (the same arithmetic, so the same floats; the feedback tick's hot path)."""
+    def _piece_at(self, t):
+        """(piece, fraction along it) at time ``t`` of the active trip, None for a trip of
+        length 0 (the robot stands where it is until it arrives)."""
         cum = self.cum
         total = cum[-1] if cum else 0.0
         if total <= 0.0:
-            return self.xy
+            return None
         s = (t - self.depart) / self.duration * total
         s = total if s > total else (0.0 if s < 0.0 else s)
-        k = bisect.bisect_left(cum, s)
         pieces = self.pieces
+        k = bisect.bisect_left(cum, s)
         if k >= len(pieces):
             k = len(pieces) - 1
-        x0, y0, x1, y1, length = pieces[k][:5]
-        r = (s - (cum[k] - length)) / length if length > 0 else 1.0
+        piece = pieces[k]
+        length = piece[4]
+        return piece, ((s - (cum[k] - length)) / length if length > 0 else 1.0)
+
+    def position(self, t):
+        """(x, y, loc) at time ``t`` of the active trip."""
+        at = self._piece_at(t)
+        if at is None:
+            return self.xy[0], self.xy[1], self.loc
+        (x0, y0, x1, y1, _, a, b, f0, f1), r = at
+        loc = (a, b, f0 + (f1 - f0) * r) if a is not None else self.loc
+        return x0 + (x1 - x0) * r, y0 + (y1 - y0) * r, loc
+
+    def xy_at(self, t):
+        """(x, y) at time ``t`` of the active trip: :meth:`position` without the location
+        (the feedback tick's hot path)."""
+        at = self._piece_at(t)
+        if at is None:
+            return self.xy
+        (x0, y0, x1, y1, *_), r = at
         return x0 + (x1 - x0) * r, y0 + (y1 - y0) * r
 
     def _stop(self):

@@ -32,8 +32,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from . import paths, run_status
-from .agent_core import (GO, INTERFERENCE_DIST, INTERFERENCE_PERIOD, MONITOR_ID,  # noqa: F401
-                         build_agent)
+from .agent_core import GO, MONITOR_ID, build_agent
 from .algorithms.base import MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from .errors import PatrolInputError
 from .graph_config import (FEEDBACK_PERIOD, MIN_TRIP, TIMERESULTS_PERIOD,  # noqa: F401
@@ -44,6 +43,19 @@ from .graph import PatrolGraph
 from .monitor_core import MonitorCore, Stats
 from .results import (ResultWriter, RunInfo, claim_prefix, default_prefix,  # noqa: F401
                       hostname, timestamp)
+
+def start_vertices_of(cfg: GraphSimConfig, pgraph: PatrolGraph):
+    """The start vertex of each robot of ``cfg`` on ``pgraph``: the vertices nearest to the
+    start positions of the map's table, computed or optimised (docs/protocol.md)."""
+    from .initial_poses import load_initial_poses, start_positions
+    from .mapio import load_map
+    yaml_path, _ = paths.map_files(cfg.map)
+    occ = load_map(yaml_path)
+    table_path = paths.initial_poses_file()
+    pos, _ = start_positions(paths.map_name(cfg.map), cfg.robots, pgraph, occ, cfg.initpos,
+                             load_initial_poses(table_path), table_path, alg=cfg.alg)
+    return [pgraph.nearest_vertex(x, y) for x, y in pos]
+
 
 class GraphSimulator(FeedbackTicks):
     """One run. Use :meth:`run`; see the module docstring for the model."""
@@ -58,7 +70,7 @@ class GraphSimulator(FeedbackTicks):
         self.g = pgraph
         self.rng = random.Random(cfg.seed)     # the world's own draws (goal failures)
         if start_vertices is None:
-            start_vertices = self._start_vertices()
+            start_vertices = start_vertices_of(cfg, pgraph)
         if len(start_vertices) != cfg.robots:
             raise PatrolInputError(f"need {cfg.robots} start vertices, got {len(start_vertices)}")
         self.start_vertices = list(start_vertices)
@@ -71,7 +83,6 @@ class GraphSimulator(FeedbackTicks):
         self.team_pos = {}
         #: skip feedback work that cannot find an interference (same results, faster)
         self.skip_idle_ticks = True
-        self._cur = [r.xy for r in self.robots]      # where each robot is (at the last tick)
         self._tick = math.inf                         # next feedback tick (the first trip)
         self._last_tick = -1                          # last tick run
         #: (start vertex, goal) -> the pieces of that trip (graph_motion._Robot._route)
@@ -117,17 +128,6 @@ class GraphSimulator(FeedbackTicks):
         for r in self.robots:
             if r.id != rid and r.core is not None:
                 r.core.on_position(rid, xy[0], xy[1])
-
-    def _start_vertices(self):
-        from .initial_poses import load_initial_poses, start_positions
-        from .mapio import load_map
-        yaml_path, _ = paths.map_files(self.cfg.map)
-        occ = load_map(yaml_path)
-        table_path = paths.initial_poses_file()
-        pos, _ = start_positions(self.map_name, self.cfg.robots, self.g, occ,
-                                 self.cfg.initpos, load_initial_poses(table_path), table_path,
-                                 alg=self.cfg.alg)
-        return [self.g.nearest_vertex(x, y) for x, y in pos]
 
     @property
     def messages_sent(self):
@@ -175,7 +175,7 @@ class GraphSimulator(FeedbackTicks):
 
     def stood(self, robot):
         """``robot`` stopped at ``robot.xy``: that is its last published position."""
-        self.team_pos[robot.id] = self._cur[robot.id] = robot.xy
+        self.team_pos[robot.id] = robot.xy
         if not self.perfect_comm:
             self._share_position(robot.id, robot.xy)
 
