@@ -94,7 +94,9 @@ def _info_count(out):
 
 
 def test_interrupted_campaign_resumes_to_the_clean_result(tmp_path):
-    path = _write(tmp_path, CAMPAIGN)
+    # hour-long runs: a 300 s graph run now takes a few ms, and all 12 could finish between
+    # the third stored run and the SIGINT, so the interruption would not land mid-campaign
+    path = _write(tmp_path, dict(CAMPAIGN, fixed={"duration": 3600}))
     clean, resumed = str(tmp_path / "clean"), str(tmp_path / "resumed")
     cmd = [sys.executable, SCRIPT, path, "--workers", "2", "--no-report"]
     p = subprocess.run(cmd + ["--out", clean], capture_output=True, text=True, env=_env(),
