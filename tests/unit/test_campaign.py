@@ -210,3 +210,26 @@ def test_scenario_runs_get_scenario_columns_and_metrics():
     assert [f["robots"] for f in doc["scenario"]["failures"]] == [[1]]
     plain = run_graph_task(base)["metrics"]
     assert not [k for k in plain if k.startswith("scn_")]
+
+
+def test_runs_with_one_time_stamp_keep_their_files_apart(tmp_path):
+    """Runs stored within one second share a prefix: each gets its own suffix, across calls
+    (a resumed campaign starts with an empty suffix memory and must not overwrite files)."""
+    from patrolling_sim.campaign import store_result
+    camp = load_campaign(_write(tmp_path, CAMPAIGN))
+    out = str(tmp_path / "out")
+
+    def result(i):
+        p = "grid_2/CR/host/20260101_000000"
+        return {"prefix": p, "status": "TIMEOUT", "metrics": {"idl_avg": float(i)},
+                "files": {p + "_info.csv": f"run {i}\n", p + "_idleness.csv": f"{i}\n"}}
+
+    first = {}
+    recs = [store_result(out, camp.runs[i], result(i), camp, first) for i in range(3)]
+    recs += [store_result(out, camp.runs[i], result(i), camp, {}) for i in range(3, 5)]
+    recs.append(store_result(out, camp.runs[5], result(5), camp))
+    prefixes = [r["prefix"] for r in recs]
+    assert len(set(prefixes)) == 6
+    for i, p in enumerate(prefixes):
+        assert open(os.path.join(out, p + "_info.csv")).read() == f"run {i}\n"
+    assert not [f for _, _, fs in os.walk(out) for f in fs if f.endswith(".part")]

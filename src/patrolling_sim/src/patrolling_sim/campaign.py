@@ -186,6 +186,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                                    resources={"experiment": 1} if cluster else None)
             futs = dict(zip(flist, groups))
             progress = _Progress(len(todo), skipped, stream)
+            next_free = {}                      # result prefix -> first suffix to test
             collecting["on"] = True
             pending = list(futs)
             while pending and interrupted["sig"] is None:
@@ -205,7 +206,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                         results = [{"status": "ERROR", "error": f"{type(e).__name__}: {e}"}
                                    ] * len(group)
                     for spec, result in zip(group, results):
-                        rec = store_result(out, spec, result, campaign)
+                        rec = store_result(out, spec, result, campaign, next_free)
                         state[spec.key] = rec
                         ran += 1
                         progress.update(rec, min(len(pending), n_workers))
