@@ -52,13 +52,22 @@ def test_dta_runs_unchanged(case, tmp_path):
 def test_decode_seconds_is_the_old_conversion():
     from patrolling_sim.algorithms.dta_common import (IdlenessEstimate, decode_idleness,
                                                       decode_seconds)
-    data = [3, 40, 0, 17, 32767, -32768, 5, 2]
-    sec, nxt = decode_seconds(data, 5)
-    ten, nxt2 = decode_idleness(data, 5)
+    from patrolling_sim.graph import PatrolGraph, load_graph
+    g, other = (PatrolGraph(load_graph(os.path.join(ROOT, "maps", m, m + ".graph")))
+                for m in ("1r5", "grid"))
+    n = g.n
+    assert other.n != n
+    data = [3, 40] + [0, 17, 32767, -32768, 5] + [7] * (n - 5) + [2]
+    sec, nxt = decode_seconds(data, g)
+    ten, nxt2 = decode_idleness(data, n)
     assert nxt == nxt2 == 2 and sec.tolist() == (ten / 10.0).tolist()
     assert not sec.flags.writeable
-    assert decode_seconds(data, 4) is None and decode_seconds([3, 41] + data[2:], 5) is None
-    a, b = IdlenessEstimate(5, 100.0, 0.0), IdlenessEstimate(5, 100.0, 0.0)
+    assert decode_seconds(data, other) is None
+    assert decode_seconds([3, 41] + data[2:], g) is None
+    # kept with the graph (not in the module), one conversion per content
+    assert g.derived["dta_decoded"][tuple(data)][0] is sec
+    assert decode_seconds(list(data), g)[0] is sec and "dta_decoded" not in other.derived
+    a, b = IdlenessEstimate(n, 100.0, 0.0), IdlenessEstimate(n, 100.0, 0.0)
     a.merge(ten, 3.5)
     b.merge_seconds(sec, 3.5)
     assert a.values.tolist() == b.values.tolist() and a.t == b.t == 3.5

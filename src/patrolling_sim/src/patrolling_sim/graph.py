@@ -272,6 +272,10 @@ class PatrolGraph:
         pos: (n, 2) array of vertex positions in metres.
         pos_px: (n, 2) array of pixel coordinates as in the file.
         neighbors: ``neighbors[u]`` = list of ``(w, cost_px)`` in file order (multi-edges kept).
+        derived: tables other modules derive from this graph and keep with it, computed on
+            first use and keyed by their owner (e.g. ``"cgg_route"``, ``"dta_path_hops"``,
+            ``"dta_decoded"``). They live as long as the graph: one simulation, or the runs
+            of one map in a campaign worker, never the whole process.
     """
 
     def __init__(self, G):
@@ -295,6 +299,7 @@ class PatrolGraph:
         self._dist = None
         self._next = None
         self._hops = None
+        self.derived = {}
 
     @classmethod
     def load(cls, path, occupancy=None):

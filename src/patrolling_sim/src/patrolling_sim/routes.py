@@ -199,7 +199,7 @@ def closed_route(pgraph, vertices: Optional[Sequence[int]] = None, seed: int = 1
     if len(verts) == 1:
         return [verts[0], verts[0]]
     # every robot of a team asks for the same route: computed once per graph object
-    cache = pgraph.__dict__.setdefault("_closed_route_cache", {})
+    cache = pgraph.derived.setdefault("closed_route", {})
     key = (tuple(verts), seed)
     if key not in cache:
         cache[key] = _closed_route(pgraph, verts, seed)
@@ -219,7 +219,7 @@ def _subgraph_metric(pgraph, verts):
     if len(verts) == pgraph.n:
         return pgraph.dist, pgraph.path
     # cached on the graph object itself (no module-level state shared between graphs)
-    cache = pgraph.__dict__.setdefault("_sub_metric_cache", {})
+    cache = pgraph.derived.setdefault("sub_metric", {})
     if verts not in cache:
         cache[verts] = _sub_metric(pgraph, verts)
     return cache[verts]
@@ -316,7 +316,7 @@ def balanced_partition(pgraph, k: int, vertices: Optional[Sequence[int]] = None)
     verts = sorted(range(pgraph.n) if vertices is None else vertices)
     if k < 1:
         raise ValueError("k must be >= 1")
-    cache = pgraph.__dict__.setdefault("_partition_cache", {})
+    cache = pgraph.derived.setdefault("partition", {})
     key = (tuple(verts), k)
     if key not in cache:
         cache[key] = _balanced_partition(pgraph, k, verts)

@@ -67,7 +67,7 @@ def original_cyclic_route(pgraph):
     """(route, source): the original's route -- its Hamiltonian route (source
     "hamiltonian"), else its longest cycle / longest path with detours ("cycle" / "path"),
     else, where that construction fails, the short closed tour ("tsp", logged)."""
-    cache = pgraph.__dict__.setdefault("_cgg_route_cache", {})
+    cache = pgraph.derived.setdefault("cgg_route", {})
     if "route" not in cache:
         route = hamiltonian_route(pgraph)
         if route is not None:

@@ -110,29 +110,35 @@ def decode_idleness(data, n):
     return np.asarray(data[2:2 + n], dtype=float), data[2 + n]
 
 
-#: decoded payloads (the message as a tuple -> (seconds, next)): a message reaches every
-#: teammate with the same content, so each is converted once instead of once per receiver
-#: (the conversion was half of a large team's run time). Content-keyed, so sharing it across
-#: robots and simulations in one process cannot change a result; emptied when full.
-_DECODED = {}
-_DECODED_MAX = 512
+#: most decoded payloads kept per graph (see :func:`decode_seconds`); emptied when full
+DECODED_MAX = 512
 
 
-def decode_seconds(data, n):
+def decode_seconds(data, pgraph):
     """(idleness in seconds as a read-only float array, next) from
-    ``[id, 40, I_0..I_{n-1}, next]``, or None if malformed: :func:`decode_idleness` divided
-    by :data:`IDLENESS_SCALE`, cached by the message's content."""
+    ``[id, 40, I_0..I_{n-1}, next]`` for the graph ``pgraph``, or None if malformed:
+    :func:`decode_idleness` divided by :data:`IDLENESS_SCALE`.
+
+    A message reaches every teammate with the same content, so each is converted once
+    instead of once per receiver (the conversion was half of a large team's run time): the
+    results are kept in ``pgraph.derived["dta_decoded"]``, keyed by the message's content,
+    so sharing them between the robots of one simulation (or the runs of one map in a
+    campaign worker) cannot change a result."""
+    n = pgraph.n
     if len(data) != n + 3 or data[1] != MSG_DTA_IDLENESS:
         return None
     key = tuple(data)
-    hit = _DECODED.get(key)
+    cache = pgraph.derived.get("dta_decoded")
+    if cache is None:
+        cache = pgraph.derived["dta_decoded"] = {}
+    hit = cache.get(key)
     if hit is not None:
         return hit
     sec = np.array(data[2:2 + n], dtype=float) / IDLENESS_SCALE
     sec.flags.writeable = False
-    if len(_DECODED) >= _DECODED_MAX:
-        _DECODED.clear()
-    hit = _DECODED[key] = (sec, data[2 + n])
+    if len(cache) >= DECODED_MAX:
+        cache.clear()
+    hit = cache[key] = (sec, data[2 + n])
     return hit
 
 
@@ -142,7 +148,7 @@ def path_hops(pgraph):
     equally cheap paths resolve as there: vertices are settled in (distance, id) order and a
     path is replaced only by a strictly cheaper one, neighbours scanned in file order.
     Unreachable pairs are inf. Computed once per graph object."""
-    cache = pgraph.__dict__.setdefault("_dta_path_hops", {})
+    cache = pgraph.derived.setdefault("dta_path_hops", {})
     if "hops" not in cache:
         n = pgraph.n
         hops = np.full((n, n), np.inf)

@@ -73,7 +73,7 @@ class DTAGreedy(PatrolStrategy):
         self.send(MSG_DTA_IDLENESS, *self.gi.encode(now, zero=self.next), self.next)
 
     def on_message(self, data, now):
-        dec = decode_seconds(data, self.graph.n)
+        dec = decode_seconds(data, self.graph)
         if dec is None or self.gi is None:
             return
         values, their_next = dec

@@ -260,7 +260,7 @@ class DTASSIPart(PatrolStrategy):
             return
         kind = data[1]
         if kind == MSG_DTA_IDLENESS:
-            dec = decode_seconds(data, self.graph.n)
+            dec = decode_seconds(data, self.graph)
             if dec is not None:
                 self.gi.merge_seconds(dec[0], now)
         elif kind in (MSG_SSI_TASK_REQUEST, MSG_SSI_BID) and len(data) >= 4:
