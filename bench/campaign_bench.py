@@ -59,12 +59,14 @@ def timed_campaign(path, out, workers):
 
 def timed_loop(path):
     from patrolling_sim.campaign import load_campaign, run_graph_task
+    from patrolling_sim.campaign_tasks import WorldCache
     camp = load_campaign(path)
-    run_graph_task(camp.runs[0].config)        # imports and caches warm, as in a worker
+    worlds = WorldCache()                      # kept across the runs, as a worker's
+    run_graph_task(camp.runs[0].config, worlds)    # imports and caches warm, as in a worker
     c0 = time.process_time()
     t0 = time.perf_counter()
     for r in camp.runs:
-        run_graph_task(r.config)
+        run_graph_task(r.config, worlds)
     return time.perf_counter() - t0, time.process_time() - c0
 
 

@@ -47,7 +47,8 @@ def main():
         ap.error("give two durations or more and 0 < --fraction <= 1")
     import numpy as np
     from patrolling_sim.campaign_spec import load_campaign
-    from patrolling_sim.campaign_tasks import run_graph_task
+    from patrolling_sim.campaign_tasks import WorldCache, run_graph_task
+    worlds = WorldCache()                      # graphs kept across the runs, as a worker's
     camp = load_campaign(a.campaign)
     runs = camp.runs
     seeds = sorted({r.config["seed"] for r in runs})
@@ -80,7 +81,7 @@ def main():
         ys = []
         for d in durs:
             c = dict(cells[k], seed=seeds[0], duration=d)
-            res = run_graph_task(c)
+            res = run_graph_task(c, worlds)
             ys.append(res["cpu_s"])
             cpu_used += res["cpu_s"]
         b, a0 = np.polyfit(durs, ys, 1)

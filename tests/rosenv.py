@@ -5,7 +5,6 @@ Each rostest runs in its own ROS_HOME (logs, JUnit XML) with an environment buil
 ``/usr/bin/env python3``). A rostest passes only if its exit code is 0 *and* its JUnit XML
 files report tests with no failure or error.
 """
-import functools
 import glob
 import os
 import subprocess
@@ -14,18 +13,11 @@ import xml.etree.ElementTree as ET
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 
 
-@functools.lru_cache(maxsize=1)
 def ros_env():
-    setup = os.path.join(ROOT, "devel", "setup.bash")
-    if not os.path.isfile(setup):
-        raise RuntimeError(f"{setup} missing: run 'make setup' first")
-    out = subprocess.run(["bash", "-c", f"source '{setup}' && env -0"], check=True,
-                         capture_output=True).stdout
-    env = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
-    env["PATH"] = "/usr/bin:/bin:" + env.get("PATH", "")
-    env.pop("ROS_MASTER_URI", None)
-    env["PYTHONUNBUFFERED"] = "1"
-    return env
+    """The workspace's environment (``devel/setup.bash``, /usr/bin first on PATH, no
+    ROS_MASTER_URI): the runner's own, so tests run ROS as experiments do."""
+    from patrolling_sim.runner.rosenv import workspace_env
+    return workspace_env()
 
 
 def discover_rostests():

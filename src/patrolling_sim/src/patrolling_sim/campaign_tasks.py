@@ -58,8 +58,18 @@ class WorldCache:
         return g, starts
 
 
-#: one per worker process (Dask keeps the module between runs)
-_WORLDS = WorldCache()
+def worker_worlds() -> "WorldCache":
+    """The WorldCache of the Dask worker running this task, kept on the worker object (one
+    per worker process, as long as the worker lives); outside a worker, a new empty one."""
+    try:
+        from distributed import get_worker
+        worker = get_worker()
+    except (ImportError, ValueError):          # not in a Dask task
+        return WorldCache()
+    worlds = getattr(worker, "patrolling_sim_worlds", None)
+    if worlds is None:
+        worlds = worker.patrolling_sim_worlds = WorldCache()
+    return worlds
 
 
 def _read_tree(root: str) -> Dict[str, str]:
@@ -133,18 +143,19 @@ def run_metrics(files: Dict[str, str], prefix: str, map_name: str, visits_path: 
     return row
 
 
-def run_graph_task(config: dict) -> dict:
+def run_graph_task(config: dict, worlds: "WorldCache" = None) -> dict:
     """Worker side of a graph-mode run: simulate in a private scratch folder and return every
     file written (relative path -> text), the visit log included, the run's metrics row, its
     CPU time and provenance. Runs in a Dask worker process, which keeps its imports between
-    runs."""
+    runs; ``worlds`` (default: the worker's, :func:`worker_worlds`) supplies graphs and
+    start vertices."""
     from .graph_sim import GraphSimConfig, GraphSimulator
     t0 = datetime.datetime.now(datetime.timezone.utc)
     wall = time.monotonic()
     cpu = time.thread_time()
     with tempfile.TemporaryDirectory(prefix="campaign_", dir=_tmp_root()) as tmp:
         cfg = GraphSimConfig(**dict(config, results_dir=tmp))
-        g, starts = _WORLDS.get(cfg)
+        g, starts = (worlds or worker_worlds()).get(cfg)
         sim = GraphSimulator(cfg, start_vertices=starts, pgraph=g)
         sim.run(write=True)                    # the writer keeps the visit log too
         prefix = os.path.relpath(sim.prefix, tmp)
@@ -160,9 +171,10 @@ def run_graph_chunk(configs: List[dict]) -> List[dict]:
     """Several graph-mode runs in one Dask task (the engine's cost per task is paid once per
     chunk); a run that raises gives an ERROR result, the others are kept."""
     out = []
+    worlds = worker_worlds()
     for c in configs:
         try:
-            out.append(run_graph_task(c))
+            out.append(run_graph_task(c, worlds))
         except Exception as e:                 # recorded per run, like a failed task
             out.append({"status": "ERROR", "error": f"{type(e).__name__}: {e}"})
     return out

@@ -3,6 +3,7 @@
 The data root is ``$PATROLLING_SIM_DATA`` if set, else the workspace root found from this
 file (``<root>/src/patrolling_sim/src/patrolling_sim/paths.py``).
 """
+import functools
 import os
 
 from .errors import PatrolInputError
@@ -68,19 +69,25 @@ def msp_route_file(map_name_, n_robots, robot_id):
     return os.path.join(data_root(), "MSP", map_name_, f"{map_name_}_{n_robots}_{robot_id}")
 
 
-_VERTEX_COUNTS = {}
-
-
 def vertex_count(name):
-    """Number of vertices of a map's patrol graph (read once per map and process).
+    """Number of vertices of a map's patrol graph (its file is parsed again only when it
+    changed: :func:`_graph_vertex_count` is a pure function of the file's path and stamp).
 
     Raises:
         PatrolInputError: unknown map or unreadable graph file.
     """
-    if name not in _VERTEX_COUNTS:
-        from .graph import load_graph
-        _VERTEX_COUNTS[name] = load_graph(map_files(name)[1], warn=False).number_of_nodes()
-    return _VERTEX_COUNTS[name]
+    path = map_files(name)[1]
+    try:
+        st = os.stat(path)
+    except OSError:
+        st = None
+    return _graph_vertex_count(path, st and st.st_size, st and st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=256)
+def _graph_vertex_count(path, _size, _mtime_ns):
+    from .graph import load_graph
+    return load_graph(path, warn=False).number_of_nodes()
 
 
 def load_map_bundle(name):
