@@ -346,3 +346,53 @@ def test_unknown_map_still_reports(tmp_path):
     assert not [f for f in os.listdir(out) if f.startswith("heatmap_")]
     assert os.path.exists(os.path.join(out, "report.html"))
     assert not os.path.exists(os.path.join(out, "runs"))   # --no-run-plots
+
+
+def test_extended_metrics_from_the_visit_log_or_the_campaign_file(tmp_path):
+    """A run's time-averaged and worst idleness: from its visit log (computed at load, the log
+    then dropped), or from the <prefix>_metrics.yaml a campaign wrote beside it."""
+    sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+    from patrolling_sim.metrics import compute_metrics, read_visits
+    from patrolling_sim.paths import vertex_count
+    from patrolling_sim.report.loading import find_runs, load_run
+    res = tmp_path / "res"
+    p = subprocess.run([sys.executable, GRAPH_SIM, "--map", "grid", "--robots", "2", "--alg",
+                        "CR", "--duration", "600", "--seed", "1", "--results-dir", str(res)],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    (prefix,), _ = find_runs([str(res)])
+    run = load_run(prefix)
+    info = run.info
+    m = compute_metrics(read_visits(prefix + "_visits.csv"), vertex_count("grid"),
+                        float(info["sim_duration"]))
+    assert run.extended == (m.time_avg_idleness, m.worst_idleness)
+    assert run.visits is None                  # no scenario: the log is not kept
+    with open(prefix + "_metrics.yaml", "w") as f:
+        f.write("time_avg_idleness: 12.5\nworst_idleness: 99.0\n")
+    assert load_run(prefix).extended == (12.5, 99.0)
+    out = str(tmp_path / "rep")
+    proc = run_report([str(res), "--out", out, "--no-run-plots"])
+    assert proc.returncode == 0, proc.stderr
+    (row,) = read_csv(os.path.join(out, "runs.csv"))
+    assert float(row["time_avg_idleness"]) == 12.5 and float(row["worst_idleness"]) == 99.0
+
+
+@pytest.mark.parametrize("line, needle", [("99.0;0;3;-4.0;0", "negative"),
+                                          ("99.0;0;3.5;4.0;0", "integer"),
+                                          ("99.0;0;3;4.0", "Interferences"),
+                                          ("99.0;0;3;inf;0", "Idleness")])
+def test_idleness_fast_parse_falls_back_to_the_checked_one(tmp_path, line, needle):
+    sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+    from patrolling_sim.errors import PatrolInputError
+    from patrolling_sim.report import loading
+    prefix = write_run(str(tmp_path), "grid", 2, "CR", "h", "20260101_000000",
+                       random.Random(3), 25, 30)
+    path = prefix + "_idleness.csv"
+    fast = loading._read_idleness_numeric(path)
+    assert fast is not None and fast.equals(loading.read_idleness(path))
+    assert list(fast.dtypes.astype(str)) == ["float64", "int64", "int64", "float64", "int64"]
+    with open(path, "a") as f:
+        f.write(line + "\n")
+    assert loading._read_idleness_numeric(path) is None
+    with pytest.raises(PatrolInputError, match=needle):
+        loading.read_idleness(path)

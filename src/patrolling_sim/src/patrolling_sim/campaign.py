@@ -84,6 +84,11 @@ WORKER_DASK_ENV = {"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
                    "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s"}
 
 
+#: a campaign's report draws one idleness-over-time figure per run only up to this many
+#: runs (each is a PNG of ~0.2 s; the reference campaign has 7020 runs)
+REPORT_RUN_PLOTS_MAX = 200
+
+
 def _env_for_workers():
     """Make the workspace's packages importable in worker processes started from here, with
     the settings of WORKER_DASK_ENV."""
@@ -291,9 +296,14 @@ def main(argv=None):
         if not a.no_report and not res["interrupted"] and os.path.isdir(
                 os.path.join(out, RESULTS_DIR)):
             from .report.build import build_report
+            per_run = len(camp.runs) <= REPORT_RUN_PLOTS_MAX
             try:
-                build_report([os.path.join(out, RESULTS_DIR)], os.path.join(out, "report"))
-                print(f"report: {os.path.join(out, 'report', 'report.html')}")
+                build_report([os.path.join(out, RESULTS_DIR)], os.path.join(out, "report"),
+                             run_plots=per_run)
+                print(f"report: {os.path.join(out, 'report', 'report.html')}"
+                      + ("" if per_run else f" (no per-run time plots: {len(camp.runs)} runs "
+                         f"> {REPORT_RUN_PLOTS_MAX}; scripts/report.py "
+                         f"{os.path.join(out, RESULTS_DIR)} draws them)"))
             except Exception as e:             # the table is the product; say why no report
                 print(f"campaign.py: warning: no report ({type(e).__name__}: {e})")
         if res["interrupted"]:

@@ -35,25 +35,11 @@ METRIC_LABELS = {
 AGREE_TOL = 0.1
 
 
-def _vertex_count(map_name):
-    """Vertices of a shipped map's graph (None if it cannot be read: user maps filed under a
-    hashed name)."""
-    from .. import paths
-    try:
-        return paths.vertex_count(map_name)
-    except Exception:                          # noqa: BLE001 - any unreadable map: no metric
-        return None
-
-
 def extended_metrics(run):
-    """(time-averaged graph idleness, worst idleness) of a run from its visit log
-    (docs/metrics.md), NaN without a log or a readable graph."""
-    n = _vertex_count(run.info["map"]) if run.visits is not None else None
-    if not n or not run.info["sim_duration"]:
-        return np.nan, np.nan
-    from ..metrics import compute_metrics
-    m = compute_metrics(run.visits, n, float(run.info["sim_duration"]))
-    return m.time_avg_idleness, m.worst_idleness
+    """(time-averaged graph idleness, worst idleness) of a run (docs/metrics.md), computed
+    when it was loaded (:func:`patrolling_sim.report.loading.load_run`); NaN without a
+    visit log or a readable graph."""
+    return run.extended
 
 
 def run_table(runs):
