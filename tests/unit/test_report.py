@@ -396,3 +396,17 @@ def test_idleness_fast_parse_falls_back_to_the_checked_one(tmp_path, line, needl
     assert loading._read_idleness_numeric(path) is None
     with pytest.raises(PatrolInputError, match=needle):
         loading.read_idleness(path)
+
+
+def test_without_run_plots_the_tables_are_the_same(synthetic, tmp_path):
+    """--no-run-plots loads only the samples' Node and Idleness columns: every table
+    (summary, runs, p-values, excluded runs) is the same as the full report's."""
+    root, out, proc = synthetic
+    assert proc.returncode == 0, proc.stderr
+    slim = str(tmp_path / "slim")
+    p = run_report([root, "--out", slim, "--title", "synthetic", "--no-run-plots"])
+    assert p.returncode == 0, p.stderr
+    for name in ("summary.csv", "runs.csv", "pairwise_pvalues.csv", "excluded.csv"):
+        assert open(os.path.join(slim, name)).read() == open(os.path.join(out, name)).read()
+    assert not os.path.isdir(os.path.join(slim, "runs")) or not os.listdir(
+        os.path.join(slim, "runs"))

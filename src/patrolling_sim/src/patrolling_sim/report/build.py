@@ -99,7 +99,7 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
     Raises:
         PatrolInputError: a bad input path or a malformed result file.
     """
-    all_runs, warnings = load_runs(dirs)
+    all_runs, warnings = load_runs(dirs, slim=not run_plots)
     runs, excluded = select_runs(all_runs, include_fail)
     if not runs:
         counts = {}

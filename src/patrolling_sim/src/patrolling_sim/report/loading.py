@@ -271,8 +271,14 @@ def run_status_of(prefix, info):
     return status, note
 
 
-def load_run(prefix):
+#: the idleness columns a report keeps without per-run time plots (``load_run(slim=True)``)
+SLIM_COLUMNS = ("Node", "Idleness")
+
+
+def load_run(prefix, slim=False):
     """Load one run (info + idleness samples + status + the visit log's extended metrics).
+    ``slim``: keep only :data:`SLIM_COLUMNS` of the samples, Node as int32 (what the tables,
+    box plots, histograms and heat maps use; the time plots need the rest).
 
     The extended metrics come from ``<prefix>_metrics.yaml`` when a campaign wrote one
     (computed from the same visit log, where the run ran), else from the visit log; the log
@@ -280,6 +286,9 @@ def load_run(prefix):
     thousands of runs, and their logs were most of its memory."""
     info = parse_info(prefix + INFO_SUFFIX)
     samples = read_idleness(prefix + IDLENESS_SUFFIX)
+    if slim:
+        samples = pd.DataFrame({"Node": samples["Node"].astype(np.int32),
+                                "Idleness": samples["Idleness"]})
     status, note = run_status_of(prefix, info)
     run = Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note)
     run.extended = _stored_extended(prefix)
@@ -328,8 +337,9 @@ def _extended_from_visits(visits, info):
     return (m.time_avg_idleness, m.worst_idleness)
 
 
-def load_runs(dirs):
-    """Find and load every run under ``dirs``. Returns (runs, warnings)."""
+def load_runs(dirs, slim=False):
+    """Find and load every run under ``dirs`` (``slim``: see :func:`load_run`). Returns
+    (runs, warnings)."""
     prefixes, warnings = find_runs(dirs)
-    runs = [load_run(p) for p in prefixes]
+    runs = [load_run(p, slim) for p in prefixes]
     return runs, warnings
