@@ -233,3 +233,44 @@ def test_runs_with_one_time_stamp_keep_their_files_apart(tmp_path):
     for i, p in enumerate(prefixes):
         assert open(os.path.join(out, p + "_info.csv")).read() == f"run {i}\n"
     assert not [f for _, _, fs in os.walk(out) for f in fs if f.endswith(".part")]
+
+
+def test_a_signal_after_the_last_run_interrupts_nothing(tmp_path):
+    """SIGINT while the last run is being stored: the campaign finishes (not "interrupted"),
+    table and provenance written; SIGINT at the first of several runs: interrupted."""
+    import io
+    from patrolling_sim.campaign import run_campaign
+    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
+                                                                    map=["grid"], alg=["CR"]),
+                                               seeds=2)))
+    assert len(camp.runs) == 2
+
+    def kill_at(k):
+        seen = []
+
+        def on_record(rec):
+            seen.append(rec)
+            if len(seen) == k:
+                os.kill(os.getpid(), signal.SIGINT)
+        return on_record
+
+    out = str(tmp_path / "late")
+    log = io.StringIO()
+    res = run_campaign(camp, out, workers=1, stream=log, on_record=kill_at(2))
+    assert res["ran"] == 2 and not res["interrupted"] and res["signal"] is None
+    assert "after the last run: finished" in log.getvalue() and "interrupted" not in log.getvalue()
+    assert not yaml.safe_load(open(os.path.join(out, "provenance.yaml")))["interrupted"]
+    assert set(_table(out)["status"]) == {"TIMEOUT"}
+    # the default handler is back
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+    camp4 = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
+                                                                     map=["grid"], alg=["CR"]),
+                                                seeds=40, fixed={"duration": 3600}),
+                                 name="c4.yaml"))
+    out = str(tmp_path / "early")
+    log = io.StringIO()
+    res = run_campaign(camp4, out, workers=1, stream=log, on_record=kill_at(1))
+    assert res["interrupted"] and res["signal"] == signal.SIGINT and res["ran"] < 40
+    assert "interrupted after" in log.getvalue()
+    assert yaml.safe_load(open(os.path.join(out, "provenance.yaml")))["interrupted"]

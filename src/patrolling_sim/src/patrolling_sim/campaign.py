@@ -220,7 +220,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                     if interrupted["sig"] is not None:
                         break
             collecting["on"] = False
-            if interrupted["sig"] is not None:
+            if interrupted["sig"] is not None and pending:
                 raise KeyboardInterrupt
             if progress.tty:
                 stream.write("\n")
@@ -228,24 +228,32 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
         stream.write(f"\ncampaign {campaign.name}: interrupted after {ran} run(s); run the same "
                      "command again to resume\n")
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        if client is not None:
-            try:
-                client.close()
-            except Exception:
-                pass
-        if cluster is not None:
-            try:
-                cluster.close()
-            except Exception:
-                pass
-        table = write_table(out, campaign, state)
-        prov["end"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-        prov["interrupted"] = interrupted["sig"] is not None
-        _write_atomic(os.path.join(out, "provenance.yaml"), yaml.safe_dump(prov, sort_keys=False))
-    return {"ran": ran, "skipped": skipped, "interrupted": interrupted["sig"] is not None,
-            "signal": interrupted["sig"], "table": table}
+        # a signal from here on only sets the flag: the cluster is stopped and the table and
+        # provenance written whatever arrives
+        collecting["on"] = True
+        try:
+            for closing in (client, cluster):
+                if closing is not None:
+                    try:
+                        closing.close()
+                    except Exception:
+                        pass
+            table = write_table(out, campaign, state)
+            # a signal that came once every run was stored interrupted nothing
+            stopped = interrupted["sig"] is not None and ran < len(todo)
+            if interrupted["sig"] is not None and not stopped:
+                stream.write(f"campaign {campaign.name}: signal received after the last run: "
+                             "finished\n")
+            prov["end"] = datetime.datetime.now(datetime.timezone.utc).isoformat(
+                timespec="seconds")
+            prov["interrupted"] = stopped
+            _write_atomic(os.path.join(out, "provenance.yaml"),
+                          yaml.safe_dump(prov, sort_keys=False))
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+    return {"ran": ran, "skipped": skipped, "interrupted": stopped,
+            "signal": interrupted["sig"] if stopped else None, "table": table}
 
 
 def _package_versions():
