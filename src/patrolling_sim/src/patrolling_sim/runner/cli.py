@@ -16,6 +16,7 @@ when a node crashed, 130 on SIGINT, 143 on SIGTERM (patrolling_sim.run_status); 
 is recorded in info.csv and ``<prefix>_run.yaml``. With ``--batch``, flags given on the
 command line override every entry of the batch; a batch exits 0 only if every run did.
 """
+import contextlib
 import os
 import signal
 import subprocess
@@ -200,11 +201,42 @@ def exit_status(returncode):
     return 128 - returncode if returncode is not None and returncode < 0 else returncode
 
 
-def run_batch(configs, parallel, argv0, out=print):
+class SignalHold:
+    """Holds the interruption a signal handler would raise while a run is being started, so
+    that a run whose process exists is always in the table of running ones (and is stopped
+    and listed as interrupted): the handler asks :meth:`holding` and, if so, calls
+    :meth:`defer` instead of raising; leaving :meth:`hold` raises it."""
+
+    def __init__(self):
+        self._depth = 0
+        self._pending = False
+
+    def holding(self):
+        return self._depth > 0
+
+    def defer(self):
+        self._pending = True
+
+    @contextlib.contextmanager
+    def hold(self):
+        self._depth += 1
+        try:
+            yield
+        finally:
+            self._depth -= 1
+            if not self._depth and self._pending:
+                self._pending = False
+                raise KeyboardInterrupt
+
+
+def run_batch(configs, parallel, argv0, out=print, hold=None):
     """Run validated configurations, ``parallel`` at a time, each in its own process
-    (each with its own ROS master). Returns the list of (config, exit code, result line)."""
+    (each with its own ROS master). Returns the list of (config, exit code, result line).
+    ``hold``: the :class:`SignalHold` the caller's signal handler consults (a run's start,
+    from its log file to its entry in the running table, is not cut by a signal)."""
     import shutil
     import tempfile
+    hold = hold or SignalHold()
     pending = list(enumerate(configs))
     running = {}
     results = [None] * len(configs)
@@ -213,14 +245,15 @@ def run_batch(configs, parallel, argv0, out=print):
     try:
         while pending or running:
             while pending and len(running) < parallel:
-                i, cfg = pending.pop(0)
-                path = os.path.join(tmpdir, f"run_{i}.yaml")
-                cfg.save(path)
-                logf = open(os.path.join(tmpdir, f"run_{i}.out"), "w+")
-                p = subprocess.Popen([sys.executable, argv0, "--headless", "--config", path],
-                                     stdout=logf, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
-                running[i] = (p, logf, time.monotonic())
+                with hold.hold():
+                    i, cfg = pending.pop(0)
+                    path = os.path.join(tmpdir, f"run_{i}.yaml")
+                    cfg.save(path)
+                    logf = open(os.path.join(tmpdir, f"run_{i}.out"), "w+")
+                    p = subprocess.Popen([sys.executable, argv0, "--headless", "--config",
+                                          path], stdout=logf, stderr=subprocess.STDOUT,
+                                         stdin=subprocess.DEVNULL, start_new_session=True)
+                    running[i] = (p, logf, time.monotonic())
             time.sleep(0.5)
             for i, (p, logf, t0) in list(running.items()):
                 if p.poll() is None:
@@ -308,14 +341,19 @@ def main(argv):
                 print(f"run {k + 1}: " + " ".join(f"{key}={v}" for key, v in c.to_dict().items()))
             return 0
         got = []
+        hold = SignalHold()
 
         def on_signal(signum, frame):
             got.append(signum)
+            if hold.holding():                 # a run is being started: raise once it is
+                hold.defer()                   # in the running table
+                return
             raise KeyboardInterrupt
         old_term = signal.signal(signal.SIGTERM, on_signal)
         old_int = signal.signal(signal.SIGINT, on_signal)
         try:
-            results = run_batch(configs, args.parallel, os.path.abspath(sys.argv[0]))
+            results = run_batch(configs, args.parallel, os.path.abspath(sys.argv[0]),
+                                hold=hold)
         except BatchInterrupted as e:
             signal.signal(signal.SIGINT, signal.SIG_IGN)    # let the table be printed
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
