@@ -20,6 +20,7 @@ from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import Odometry
 from std_srvs.srv import Empty
+from tf2_msgs.msg import TFMessage
 
 from spqrel_nav_lite.geometry import compose, normalize_angle, yaw_from_quaternion
 
@@ -35,6 +36,11 @@ class LocalizationTest(unittest.TestCase):
         self.odom = {}
         self.est = []
         self.clouds = 0
+        #: stamps (ns) at which map->robot_0/odom was published: the fake localiser reads the
+        #: ground truth with queue_size 1, so under load it skips some, and tf2 interpolates
+        #: between its neighbours there (not an error of the localiser)
+        self.corrections = set()
+        rospy.Subscriber("/tf", TFMessage, self.on_tf, queue_size=100)
         rospy.Subscriber("/robot_0/base_pose_ground_truth", Odometry, self.on_truth)
         rospy.Subscriber("/robot_0/odom", Odometry, self.on_odom)
         rospy.Subscriber("/robot_0/amcl_pose", PoseWithCovarianceStamped, self.on_est)
@@ -42,6 +48,11 @@ class LocalizationTest(unittest.TestCase):
 
     def on_truth(self, m):
         self.truth[m.header.stamp.to_nsec()] = pose_of(m.pose.pose)
+
+    def on_tf(self, m):
+        for t in m.transforms:
+            if t.header.frame_id == "map" and t.child_frame_id == "robot_0/odom":
+                self.corrections.add(t.header.stamp.to_nsec())
 
     def on_odom(self, m):
         self.odom[m.header.stamp.to_nsec()] = pose_of(m.pose.pose)
@@ -88,7 +99,7 @@ class LocalizationTest(unittest.TestCase):
                 except (tf2_ros.LookupException, tf2_ros.ExtrapolationException,
                         tf2_ros.ConnectivityException):
                     continue
-                if stamp not in self.truth:
+                if stamp not in self.truth or stamp not in self.corrections:
                     continue
                 c = (tr.transform.translation.x, tr.transform.translation.y,
                      yaw_from_quaternion(tr.transform.rotation.x, tr.transform.rotation.y,
