@@ -292,7 +292,8 @@ def load_run(prefix, slim=False):
     status, note = run_status_of(prefix, info)
     run = Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note)
     run.extended = _stored_extended(prefix)
-    if run.extended is None or os.path.isfile(prefix + "_scenario.yaml"):
+    scenario = os.path.isfile(prefix + "_scenario.yaml")
+    if run.extended is None or scenario:
         visits = None
         if os.path.isfile(prefix + "_visits.csv"):
             from ..metrics import read_visits
@@ -302,7 +303,7 @@ def load_run(prefix, slim=False):
                 log.warning("%s (no extended metrics for this run)", e)
         if run.extended is None:
             run.extended = _extended_from_visits(visits, info)
-        if os.path.isfile(prefix + "_scenario.yaml"):
+        if scenario:
             run.visits = visits
     return run
 
