@@ -369,6 +369,24 @@ def test_controller_brakes_harder_for_unmapped_points():
     assert compute_command((0.0, 0.0, 0.0), 0.8, 0.0, path, 0, close, 0.1, p, close).blocked
 
 
+def test_controller_stops_for_a_robot_coming_head_on_in_time():
+    """Two robots at 0.75 m/s, 0.725 m between their surfaces (the other robot's near side
+    seen 0.95 m from this centre, half a second from contact if both drive on): the other
+    closes the gap as fast as this one, so this one must stop now. The old rule (one reaction distance, the plain safety disc)
+    let both drive on, and they stopped 1-6 cm apart (head_on_stage2d.test, touching
+    after one late control cycle under load)."""
+    p = ControllerParams()
+    path = straight_path()
+    other = np.array([[0.95, y] for y in (-0.1, 0.0, 0.1)])
+    cmd = compute_command((0.0, 0.0, 0.0), 0.75, 0.0, path, 0, other, 0.1, p, other)
+    assert cmd.blocked and cmd.v == 0.0
+    # the same point as a wall (mapped): slowing down, not an emergency stop
+    assert not compute_command((0.0, 0.0, 0.0), 0.75, 0.0, path, 0, other, 0.1, p).blocked
+    # far enough away: not blocked, only slowed
+    far = other + [1.5, 0.0]
+    assert not compute_command((0.0, 0.0, 0.0), 0.75, 0.0, path, 0, far, 0.1, p, far).blocked
+
+
 @pytest.mark.parametrize("name", ["grid", "cumberland"])
 def test_planner_windowed_search_with_obstacles_is_exact(name):
     """The search around temporary obstacles runs in a window; its path cost must equal a

@@ -23,6 +23,8 @@ class ControllerParams:
     rotate_in_place_angle: float = 0.8   # heading error above which the robot turns on the spot
     safety_margin: float = 0.08     # lateral clearance kept to laser points (m)
     slowdown_distance: float = 0.8  # obstacles closer than this (beyond the radius) slow it
+    dynamic_margin: float = 0.1     # extra clearance kept to moving obstacles (m)
+    reaction_time: float = 0.3      # s from seeing an obstacle to the stop taking effect
     xy_goal_tolerance: float = 0.4
 
 
@@ -147,9 +149,15 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
             blocked = True
             v_t = 0.0
     if dynamic_points is not None and len(dynamic_points) and not blocked:
+        # a moving obstacle (another robot) may close the gap as fast as this robot does,
+        # during the reaction time of both: a wider disc along the arc (which catches it
+        # before an arc that bends away has passed it) and twice the reaction distance.
+        # With the disc alone and one reaction distance, two robots meeting head-on in a
+        # corridor stopped 1-6 cm apart and touched after one late control cycle.
         dyn = front_clearance(np.asarray(dynamic_points, dtype=float).reshape(-1, 2),
-                              max(v_t, 0.05), max(v_t, 0.05) * curvature, r_safe, horizon)
-        stop_at = 0.1 + 0.3 * max(0.0, v_now)
+                              max(v_t, 0.05), max(v_t, 0.05) * curvature,
+                              r_safe + p.dynamic_margin, horizon)
+        stop_at = 0.1 + 2.0 * p.reaction_time * max(0.0, v_now)
         if dyn < horizon:
             v_t = min(v_t, 0.5 * math.sqrt(2.0 * p.acc_lim_x * max(0.0, dyn - stop_at)))
             if dyn <= stop_at:
