@@ -372,9 +372,9 @@ def test_controller_brakes_harder_for_unmapped_points():
 def test_controller_stops_for_a_robot_coming_head_on_in_time():
     """Two robots at 0.75 m/s, 0.725 m between their surfaces (the other robot's near side
     seen 0.95 m from this centre, half a second from contact if both drive on): the other
-    closes the gap as fast as this one, so this one must stop now. The old rule (one reaction distance, the plain safety disc)
-    let both drive on, and they stopped 1-6 cm apart (head_on_stage2d.test, touching
-    after one late control cycle under load)."""
+    closes the gap as fast as this one, so this one must stop now. The old rule (one
+    reaction distance, the plain safety disc) let both drive on, and they stopped 1-6 cm
+    apart (head_on_stage2d.test, touching after one late control cycle under load)."""
     p = ControllerParams()
     path = straight_path()
     other = np.array([[0.95, y] for y in (-0.1, 0.0, 0.1)])

@@ -12,6 +12,7 @@ import rosgraph
 import rospy
 import rostest
 from nav_msgs.msg import Odometry
+from patrolling_sim.agent_core import ANNOUNCE_PERIOD
 from visualization_msgs.msg import MarkerArray
 
 import patrol_test_utils as U
@@ -40,14 +41,9 @@ class TestPatrolRun(unittest.TestCase):
         # until this node's /results subscriber is connected to every other publisher (the
         # n agents and the monitor) an announcement may be missed: the checker starts after
         # the nodes, and under load it once connected after GO and saw none (ci18)
-        master = rosgraph.Master(rospy.get_name())
         while not rospy.is_shutdown() and cls.rec.first(U.GO) is None:
             try:
-                pubs = next((names for topic, names in master.getSystemState()[0]
-                             if topic == "/results"), [])
-                pubs = [p for p in pubs if p != rospy.get_name()]
-                have = {c.endpoint_id for c in cls.rec.sub.impl.connections}
-                if len(pubs) >= cls.n + 1 and {master.lookupNode(p) for p in pubs} <= have:
+                if cls.rec.connected_to_publishers(cls.n + 1):
                     cls.t_connected = rospy.get_time()
                     return
             except (rosgraph.MasterException, OSError):
@@ -64,11 +60,11 @@ class TestPatrolRun(unittest.TestCase):
         self.assertIsNotNone(t_go, "no GO")
         # the checker may connect after the first announcements, or even after GO: every
         # announcement it saw came from a team member, before GO; if it was connected to
-        # every publisher more than one announcement period (2 s) before GO, it saw every
-        # robot announce; and every robot reported its start after GO
+        # every publisher more than one announcement period (+ 0.5 s) before GO, it saw
+        # every robot announce; and every robot reported its start after GO
         ready = {d[0] for t, d in self.rec.of_type(10) if d[0] >= 0}
         self.assertTrue(ready <= set(range(self.n)), ready)
-        if self.t_connected is not None and self.t_connected <= t_go - 2.5:
+        if self.t_connected is not None and self.t_connected <= t_go - ANNOUNCE_PERIOD - 0.5:
             self.assertEqual(ready, set(range(self.n)))
         self.assertTrue(all(t <= t_go + 0.5 for t, d in self.rec.of_type(10) if d[0] >= 0))
         starters = {d[0] for t, d in self.rec.of_type(11) if t >= t_go}

@@ -62,6 +62,19 @@ class ResultsRecorder:
     def send(self, data):
         self.pub.publish(Int16MultiArray(data=list(data)))
 
+    def connected_to_publishers(self, at_least):
+        """True when this recorder's subscriber is connected to every other publisher of
+        /results the master knows, and they are at least ``at_least`` nodes: only from then
+        on can no message be missed. Raises rosgraph.MasterException if a node is gone."""
+        import rosgraph
+        me = rospy.get_name()
+        master = rosgraph.Master(me)
+        pubs = next((names for topic, names in master.getSystemState()[0]
+                     if topic == "/results"), [])
+        pubs = [name for name in pubs if name != me]
+        have = {c.endpoint_id for c in self.sub.impl.connections}
+        return len(pubs) >= at_least and {master.lookupNode(name) for name in pubs} <= have
+
 
 def find_result_files(results_dir, timeout=10.0, need_info=True):
     """Prefix of the single run under ``results_dir`` (waits for info.csv if asked)."""
