@@ -275,3 +275,58 @@ def test_a_signal_after_the_last_run_interrupts_nothing(tmp_path):
     assert res["interrupted"] and res["signal"] == signal.SIGINT and res["ran"] < 40
     assert "interrupted after" in log.getvalue()
     assert yaml.safe_load(open(os.path.join(out, "provenance.yaml")))["interrupted"]
+
+
+def _live_children():
+    """Ids of this process's children that are not zombies (Linux /proc), except
+    multiprocessing's resource tracker (started with the first spawned process, it lives as
+    long as this process by design)."""
+    me, out = os.getpid(), set()
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+                with open(f"/proc/{d}/cmdline", "rb") as f:
+                    cmd = f.read()
+            except OSError:
+                continue
+            if (int(fields[1]) == me and fields[0] != "Z"
+                    and b"multiprocessing.resource_tracker" not in cmd):
+                out.add(int(d))
+    return out
+
+
+def test_a_signal_while_the_cluster_starts_stops_it(tmp_path, monkeypatch):
+    """The LocalCluster starts in a thread while the client prepares; SIGINT in that window
+    stops the campaign: no run, the cluster's worker processes stopped, table and provenance
+    written, interrupted."""
+    import io
+    import patrolling_sim.campaign as campaign_mod
+    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
+                                                                    map=["grid"], alg=["CR"]),
+                                               seeds=2)))
+    real = campaign_mod._package_versions
+
+    def versions_then_ctrl_c():
+        os.kill(os.getpid(), signal.SIGINT)
+        return real()
+
+    before = _live_children()
+    monkeypatch.setattr(campaign_mod, "_package_versions", versions_then_ctrl_c)
+    out = str(tmp_path / "starting")
+    log = io.StringIO()
+    res = campaign_mod.run_campaign(camp, out, workers=1, stream=log)
+    assert res["interrupted"] and res["signal"] == signal.SIGINT and res["ran"] == 0
+    assert "interrupted after 0 run(s)" in log.getvalue()
+    assert set(_table(out)["status"]) == {"NOT_RUN"}
+    assert yaml.safe_load(open(os.path.join(out, "provenance.yaml")))["interrupted"]
+    # the start was waited for (not left running on its own after the return) ...
+    import threading
+    assert not [t for t in threading.enumerate() if t.name == "campaign-cluster-start"]
+    # ... and the cluster it started was closed
+    for _ in range(100):                     # the nanny's worker process may take a moment
+        if _live_children() <= before:
+            break
+        time.sleep(0.1)
+    assert _live_children() <= before

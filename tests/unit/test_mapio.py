@@ -5,7 +5,7 @@ import pytest
 
 from patrolling_sim import paths
 from patrolling_sim.errors import MapFormatError
-from patrolling_sim.mapio import FREE, OCCUPIED, UNKNOWN, load_map
+from patrolling_sim.mapio import FREE, OCCUPIED, UNKNOWN, load_map, read_image
 
 
 def _write_map(tmp_path, img, **meta):
@@ -83,3 +83,75 @@ def test_missing_key_and_file(tmp_path):
     (tmp_path / "g.yaml").write_text("image: garbage.pgm\nresolution: 0.1\norigin: [0,0,0]\n")
     with pytest.raises(MapFormatError, match="cannot decode"):
         load_map(str(tmp_path / "g.yaml"))
+
+
+def test_pgm_fast_path_equals_opencv_on_every_shipped_map():
+    from spqrel_nav_lite.mapio import read_pgm8
+    for name in paths.available_maps():
+        image = load_map(paths.map_files(name)[0]).image_path
+        fast = read_pgm8(image)
+        assert fast is not None, f"{name}: the shipped map should take the fast path"
+        ref = cv2.imread(image, cv2.IMREAD_UNCHANGED)
+        assert fast.dtype == ref.dtype and np.array_equal(fast, ref), name
+
+
+PIXELS = bytes([0, 254, 205, 128, 1, 255])
+
+
+@pytest.mark.parametrize("header", [
+    b"P5\n3 2\n255\n",
+    b"P5\n# CREATOR: map_saver.cpp 0.050 m/pix\n3 2\n255\n",
+    b"P5 3 2 255 ",
+    b"P5\r\n3\t2 # a comment after the height\r\n255\r",
+    b"P5\n#c1\n#c2\n3\n2\n255\t",
+])
+def test_pgm_fast_path_headers_as_opencv_reads_them(tmp_path, header):
+    from spqrel_nav_lite.mapio import read_pgm8
+    p = tmp_path / "h.pgm"
+    p.write_bytes(header + PIXELS)
+    fast = read_pgm8(str(p))
+    assert fast is not None and fast.tolist() == [[0, 254, 205], [128, 1, 255]]
+    assert np.array_equal(fast, cv2.imread(str(p), cv2.IMREAD_UNCHANGED))
+
+
+@pytest.mark.parametrize("data", [
+    b"P2\n3 2\n255\n0 254 205\n128 1 255\n",       # ASCII PGM
+    b"P5\n3 2\n65535\n" + bytes(12),                 # 16-bit
+    b"P5\n3 2\n100\n" + bytes(6),                    # another maxval
+    b"P5\n3 2\n255\n" + bytes(5),                    # truncated raster
+    b"P5\n3 x\n255\n" + bytes(6),                    # malformed header
+    b"\x89PNG\r\n",                                  # not a PGM
+])
+def test_other_images_are_left_to_opencv(tmp_path, data):
+    from spqrel_nav_lite.mapio import read_pgm8
+    p = tmp_path / "o.pgm"
+    p.write_bytes(data)
+    assert read_pgm8(str(p)) is None
+    ref = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+    if ref is None or ref.size == 0:
+        with pytest.raises(MapFormatError, match="cannot decode"):
+            read_image(str(p))
+    else:
+        assert np.array_equal(read_image(str(p)), ref.astype(np.float64))
+
+
+def test_clearance_of_one_cell_equals_the_grid_on_every_shipped_map():
+    """clearance_at before the grid exists (a search around the cell) gives the grid's value,
+    at 1500 random free cells and every fourth cell along the border of each map."""
+    from patrolling_sim.mapio import FREE as FREE_CELL, OccupancyMap
+    rng = np.random.default_rng(0)
+    for name in paths.available_maps():
+        occ = load_map(paths.map_files(name)[0])
+        grid = occ.clearance
+        h, w = grid.shape
+        rows, cols = np.nonzero(occ.data == FREE_CELL)
+        pick = rng.choice(len(rows), size=min(1500, len(rows)), replace=False)
+        cells = list(zip(cols[pick], rows[pick]))
+        cells += [(i, j) for i in range(0, w, 4) for j in (0, h - 1)]
+        cells += [(i, j) for j in range(0, h, 4) for i in (0, w - 1)]
+        fresh = OccupancyMap(occ.data, occ.resolution, occ.origin)
+        for i, j in cells:
+            x, y = occ.cell_to_world(int(i), int(j))
+            got = fresh.clearance_at(x, y)
+            assert got == float(grid[j, i]), (name, i, j, got, float(grid[j, i]))
+        assert fresh._clearance is None              # never computed the grid

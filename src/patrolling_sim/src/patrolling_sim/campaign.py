@@ -102,6 +102,43 @@ def _env_for_workers():
     dask.config.refresh()
 
 
+class _ClusterStart:
+    """A LocalCluster (graph mode: one single-threaded worker process per ``n``; ROS mode:
+    ``n`` concurrent experiments) started in a background thread. ``result()`` waits for it
+    and raises what its start raised; ``result_or_none()`` waits and returns None on an
+    error (the caller is already stopping)."""
+
+    def __init__(self, n: int):
+        import threading
+        _env_for_workers()
+        self._cluster = self._error = None
+        self._thread = threading.Thread(target=self._start, args=(n,), daemon=True,
+                                        name="campaign-cluster-start")
+        self._thread.start()
+
+    def _start(self, n):
+        try:
+            from distributed import LocalCluster
+            # dashboard_address ":0": the scheduler's HTTP server (started even without a
+            # dashboard) takes a free port; its default, 8787, is taken if another campaign
+            # runs, and Dask then warns "Perhaps you already have a cluster running?"
+            self._cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                         dashboard_address=":0", silence_logs=30,
+                                         resources={"experiment": 1})
+        except BaseException as e:            # handed to the caller by result()
+            self._error = e
+
+    def result(self):
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._cluster
+
+    def result_or_none(self):
+        self._thread.join()
+        return self._cluster
+
+
 def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                  workers: Optional[int] = None, retry_failed: bool = False,
                  limit: Optional[int] = None, stream=sys.stdout,
@@ -123,7 +160,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
     Ctrl-C (or SIGTERM) stops cleanly: runs in progress are cancelled, every finished run's
     files and record are complete, and the next call resumes.
     """
-    from distributed import Client, LocalCluster, wait
+    from distributed import Client, wait
     os.makedirs(out, exist_ok=True)
     _write_atomic(os.path.join(out, "campaign.yaml"), yaml.safe_dump(campaign.raw,
                                                                     sort_keys=False))
@@ -135,11 +172,11 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
     started = datetime.datetime.now(datetime.timezone.utc)
     prov = {"name": campaign.name, "mode": campaign.mode, "file": campaign.path,
             "runs": len(campaign.runs), "code": campaign.code, "client_host": socket.gethostname(),
-            "python": platform.python_version(), "packages": _package_versions(),
+            "python": platform.python_version(), "packages": None,
             "start": started.isoformat(timespec="seconds")}
     interrupted = {"sig": None}
     ran = 0
-    cluster = client = None
+    cluster = client = starting = None
 
     # while results are being collected a signal only sets the flag (checked between two
     # stored runs, so a run's files and record are never cut half-way); before that, it
@@ -154,19 +191,23 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
+        cores = os.cpu_count() or 1
+        if todo and not scheduler:
+            # the LocalCluster starts in a thread: its worker processes start and import on
+            # the other core(s) while this process does its own preparation below
+            starting = _ClusterStart(workers or (cores if campaign.mode == "graph"
+                                                 else max(1, cores // 2)))
+        prov["packages"] = _package_versions()
+        if starting is not None:
+            import pandas  # noqa: F401  (runs.csv needs it at the end: imported while waiting)
         if not todo:
             stream.write(f"campaign {campaign.name}: {len(campaign.runs)} runs, {skipped} already "
                          "done, 0 to run\n")
         if todo:
-            cores = os.cpu_count() or 1
             if scheduler:
                 client = Client(scheduler, timeout="30s")
             else:
-                _env_for_workers()
-                n = workers or (cores if campaign.mode == "graph" else max(1, cores // 2))
-                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=30,
-                                       resources={"experiment": 1})
+                cluster = starting.result()
                 client = Client(cluster)
             link = getattr(client, "dashboard_link", None)
             stream.write(f"campaign {campaign.name}: {len(campaign.runs)} runs, {skipped} already "
@@ -232,6 +273,8 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
         # provenance written whatever arrives
         collecting["on"] = True
         try:
+            if starting is not None and cluster is None:
+                cluster = starting.result_or_none()    # interrupted while it was starting
             for closing in (client, cluster):
                 if closing is not None:
                     try:
@@ -256,13 +299,26 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             "signal": interrupted["sig"] if stopped else None, "table": table}
 
 
+#: provenance: the packages whose versions a campaign records (module name: distribution)
+PROVENANCE_PACKAGES = {"numpy": "numpy", "scipy": "scipy", "networkx": "networkx",
+                       "pandas": "pandas", "dask": "dask", "distributed": "distributed",
+                       "yaml": "PyYAML"}
+
+
 def _package_versions():
+    """Versions of PROVENANCE_PACKAGES from the installed packages' metadata (importing them
+    to read ``__version__`` cost the campaign's start-up 0.3-0.4 s); a package without
+    metadata is imported, one that cannot be imported is None."""
+    from importlib import metadata
     out = {}
-    for mod in ("numpy", "scipy", "networkx", "pandas", "dask", "distributed", "yaml"):
+    for mod, dist in PROVENANCE_PACKAGES.items():
         try:
-            out[mod] = str(__import__(mod).__version__)
+            out[mod] = metadata.version(dist)
         except Exception:
-            out[mod] = None
+            try:
+                out[mod] = str(__import__(mod).__version__)
+            except Exception:
+                out[mod] = None
     return out
 
 

@@ -91,11 +91,41 @@ class OccupancyMap:
         return self._clearance
 
     def clearance_at(self, x, y):
-        """Clearance (m) at (x, y); 0 outside the map."""
+        """Clearance (m) at (x, y); 0 outside the map. The value of :attr:`clearance`; while
+        that grid is not computed, found for this one cell (:meth:`_cell_clearance`)."""
         i, j = self.world_to_cell(x, y)
         if not (0 <= i < self.width and 0 <= j < self.height):
             return 0.0
-        return float(self.clearance[j, i])
+        if self._clearance is not None:
+            return float(self._clearance[j, i])
+        return self._cell_clearance(i, j)
+
+    def _cell_clearance(self, i, j):
+        """``clearance[j, i]`` computed for one cell: the exact Euclidean distance (in cells)
+        to the nearest non-free cell centre, the padding border included, found in square
+        windows around the cell that double in size, then the grid's formula.
+
+        Why not the grid: checking a few start positions (every graph-mode run and campaign
+        worker does it) needed OpenCV's import (0.2-0.5 s) and a transform of the whole map.
+        OpenCV's precise transform is float32(sqrt(squared integer distance)); the tests
+        compare this with the grid on every shipped map."""
+        data = self.data
+        h, w = data.shape
+        if data[j, i] != FREE:
+            d2 = 0
+        else:
+            d2 = min(i + 1, w - i, j + 1, h - j) ** 2      # the padding border's cells
+            r = 1
+            while True:
+                j0, i0 = max(0, j - r), max(0, i - r)
+                rows, cols = np.nonzero(data[j0:j + r + 1, i0:i + r + 1] != FREE)
+                if len(rows):
+                    d2 = min(d2, int(((rows + (j0 - j)) ** 2 + (cols + (i0 - i)) ** 2).min()))
+                if d2 <= r * r:                # every cell outside the window is farther
+                    break
+                r *= 2
+        d = np.sqrt(np.array([d2], dtype=np.float64)).astype(np.float32)
+        return float((np.maximum(d - 0.5, 0.0) * self.resolution).astype(np.float32)[0])
 
     def to_image(self):
         """(height, width) uint8 grey image, top row first (free 254, occupied 0,
@@ -166,12 +196,59 @@ def load_map(yaml_path):
                         negate=int(bool(negate)), occupied_thresh=occ, free_thresh=free)
 
 
+_PNM_SPACE = b" \t\r\n\x0b\x0c"
+
+
+def read_pgm8(image_path):
+    """The pixels of a binary 8-bit PGM (``P5``, maxval 255: what map_saver writes and what
+    every shipped map is) as a read-only (height, width) uint8 array, top row first; None for
+    any other file, which :func:`read_image` leaves to OpenCV.
+
+    Why not OpenCV here too: importing ``cv2`` takes 0.2-0.5 s, which every graph-mode run
+    and every campaign worker paid only to read this trivial format (a fifth of a campaign's
+    start-up, docs/benchmarks/campaign.md). The result equals ``cv2.imread(path,
+    cv2.IMREAD_UNCHANGED)`` (tests/unit/test_mapio.py compares them on every shipped map and
+    on headers with comments)."""
+    try:
+        with open(image_path, "rb") as f:
+            data = f.read()
+    except OSError:
+        return None
+    if data[:2] != b"P5":
+        return None
+    fields, i, n = [], 2, len(data)
+    while len(fields) < 3:                     # width, height, maxval
+        while i < n and (data[i] in _PNM_SPACE or data[i] == 0x23):
+            if data[i] == 0x23:                # '#': a comment to the end of the line
+                while i < n and data[i] not in b"\r\n":
+                    i += 1
+            else:
+                i += 1
+        j = i
+        while j < n and 0x30 <= data[j] <= 0x39:
+            j += 1
+        if j == i:
+            return None
+        fields.append(int(data[i:j]))
+        i = j
+    if i >= n or data[i] not in _PNM_SPACE:    # one whitespace byte, then the raster
+        return None
+    i += 1
+    w, h, maxval = fields
+    if maxval != 255 or w <= 0 or h <= 0 or n - i < w * h:
+        return None
+    return np.frombuffer(data, np.uint8, w * h, i).reshape(h, w)
+
+
 def read_image(image_path, yaml_path="map yaml"):
-    """Read a map image as a float array of mean channel values (0..255), top row first."""
-    import cv2
+    """Read a map image as a float array of mean channel values (0..255), top row first.
+    8-bit binary PGM through :func:`read_pgm8`, every other format through OpenCV."""
     if not os.path.isfile(image_path):
         raise MapFormatError(f"{yaml_path}: image '{image_path}' not found")
-    img = cv2.imread(image_path, cv2.IMREAD_UNCHANGED)
+    img = read_pgm8(image_path)
+    if img is None:
+        import cv2
+        img = cv2.imread(image_path, cv2.IMREAD_UNCHANGED)
     if img is None or img.size == 0:
         raise MapFormatError(f"{image_path}: cannot decode map image")
     img = img.astype(np.float64)
