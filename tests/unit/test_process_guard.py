@@ -1,0 +1,72 @@
+"""tests/process_guard.py: the groups tests start are recorded, and what is left of them when
+the session ends is stopped (SIGTERM, then SIGKILL), and nothing else."""
+import os
+import signal
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+import process_guard  # noqa: E402
+
+
+def _spawn(script):
+    p = subprocess.Popen(["bash", "-c", script], start_new_session=True)
+    return p
+
+
+def _wait_members(pgid, n):
+    import time
+    for _ in range(100):
+        if len(process_guard.members(pgid)) >= n:
+            return
+        time.sleep(0.05)
+
+
+def test_a_group_started_in_a_new_session_is_recorded():
+    p = _spawn("sleep 300")
+    try:
+        assert p.pid in process_guard._started
+    finally:
+        process_guard._started.pop(p.pid, None)
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+
+
+def test_orphans_of_a_dead_leader_are_stopped():
+    """The leader dies (SIGKILL, no clean-up); its two children, still in the group, are found
+    and stopped by the group's id."""
+    p = _spawn("sleep 300 & sleep 300 & wait")
+    process_guard._started.pop(p.pid, None)      # this test stops it itself
+    start = process_guard._stat(p.pid)[2]
+    _wait_members(p.pid, 3)
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait()
+    left = process_guard.members(p.pid, start)
+    assert len(left) == 2
+    stopped = process_guard.stop_groups({p.pid: start}, grace=10)
+    assert sorted(stopped[p.pid]) == sorted(left)
+    assert process_guard.members(p.pid) == []
+
+
+def test_a_group_that_ignores_sigterm_gets_sigkill():
+    p = _spawn("trap '' TERM; sleep 300 & wait")
+    process_guard._started.pop(p.pid, None)
+    start = process_guard._stat(p.pid)[2]
+    _wait_members(p.pid, 2)
+    stopped = process_guard.stop_groups({p.pid: start}, grace=0.5)
+    p.wait()
+    assert p.pid in stopped and process_guard.members(p.pid) == []
+
+
+def test_a_live_leader_with_another_start_time_is_not_ours():
+    p = _spawn("sleep 300")
+    process_guard._started.pop(p.pid, None)
+    try:
+        start = process_guard._stat(p.pid)[2]
+        _wait_members(p.pid, 1)
+        assert process_guard.members(p.pid, start + 1) == []
+        assert process_guard.stop_groups({p.pid: start + 1}, grace=0.5) == {}
+        assert p.poll() is None                    # untouched
+    finally:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
