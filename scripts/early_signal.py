@@ -1,7 +1,13 @@
 """Start-up signal handling shared by the command-line scripts (imported first, before any
 heavy module, so it must stay tiny): a SIGINT / SIGTERM while the program is still loading
 ends it at once with one line and the shell's exit code (130 / 143). Nothing has been
-started or written yet; the program installs its own handlers later."""
+started or written yet; the program installs its own handlers later.
+
+A parent that must not lose a signal sent during the child's interpreter start (before these
+handlers exist, Python would raise KeyboardInterrupt somewhere in its start-up and exit 1
+with a traceback) starts the child with SIGINT and SIGTERM blocked
+(``patrolling_sim.runner.cli.spawn_with_signals_held``): a signal sent meanwhile stays
+pending, and :func:`install` unblocks it once the handlers are in place."""
 import os
 import signal
 import sys
@@ -17,3 +23,5 @@ def install(program):
         os._exit(143 if signum == signal.SIGTERM else 130)
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
+    # delivered now if it came while blocked by the parent (see the module docstring)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})

@@ -229,6 +229,24 @@ class SignalHold:
                 raise KeyboardInterrupt
 
 
+#: the signals a batch forwards to its runs (and holds while starting one)
+HELD_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
+
+
+def spawn_with_signals_held(args, **popen_kwargs) -> subprocess.Popen:
+    """``subprocess.Popen`` with SIGINT and SIGTERM blocked in the child until it unblocks
+    them (``scripts/early_signal.py`` does, once its handlers are installed). A signal sent
+    to the child before that stays pending instead of interrupting the interpreter's start-up
+    (exit 1 and a traceback, not the run's 130 / 143: seen under load when a batch was
+    interrupted just after starting a run). Blocked here for the few microseconds of the
+    fork too; a signal to this process meanwhile is delivered when the mask is restored."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, HELD_SIGNALS)
+    try:
+        return subprocess.Popen(args, **popen_kwargs)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def run_batch(configs, parallel, argv0, out=print, hold=None):
     """Run validated configurations, ``parallel`` at a time, each in its own process
     (each with its own ROS master). Returns the list of (config, exit code, result line).
@@ -250,9 +268,10 @@ def run_batch(configs, parallel, argv0, out=print, hold=None):
                     path = os.path.join(tmpdir, f"run_{i}.yaml")
                     cfg.save(path)
                     logf = open(os.path.join(tmpdir, f"run_{i}.out"), "w+")
-                    p = subprocess.Popen([sys.executable, argv0, "--headless", "--config",
-                                          path], stdout=logf, stderr=subprocess.STDOUT,
-                                         stdin=subprocess.DEVNULL, start_new_session=True)
+                    p = spawn_with_signals_held(
+                        [sys.executable, argv0, "--headless", "--config", path], stdout=logf,
+                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                        start_new_session=True)
                     running[i] = (p, logf, time.monotonic())
             time.sleep(0.5)
             for i, (p, logf, t0) in list(running.items()):
