@@ -6,7 +6,7 @@ started or written yet; the program installs its own handlers later.
 A parent that must not lose a signal sent during the child's interpreter start (before these
 handlers exist, Python would raise KeyboardInterrupt somewhere in its start-up and exit 1
 with a traceback) starts the child with SIGINT and SIGTERM blocked
-(``patrolling_sim.runner.cli.spawn_with_signals_held``): a signal sent meanwhile stays
+(``patrolling_sim.runner.batch.spawn_with_signals_held``): a signal sent meanwhile stays
 pending, and :func:`install` unblocks it once the handlers are in place."""
 import os
 import signal

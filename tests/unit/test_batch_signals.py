@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from patrolling_sim.runner import cli
+from patrolling_sim.runner import batch
 from patrolling_sim.runner.config import ExperimentConfig
 
 #: stands in for start_experiments.py: runs until SIGINT, then exits 130 as the runner does;
@@ -41,7 +41,7 @@ def test_a_signal_during_the_childs_start_up_waits_for_its_handlers(tmp_path):
     exit 1 and a traceback (a loaded CI machine showed it)."""
     child = tmp_path / "slow.py"
     child.write_text(SLOW_START.format(scripts=os.path.abspath(SCRIPTS)))
-    p = cli.spawn_with_signals_held([sys.executable, str(child)], stdout=subprocess.PIPE,
+    p = batch.spawn_with_signals_held([sys.executable, str(child)], stdout=subprocess.PIPE,
                                     stderr=subprocess.STDOUT, start_new_session=True)
     try:
         os.kill(p.pid, signal.SIGINT)
@@ -54,11 +54,11 @@ def test_a_signal_during_the_childs_start_up_waits_for_its_handlers(tmp_path):
     assert p.returncode == 130, text
     assert text.strip() == "slow.py: interrupted by SIGINT before the run started", text
     # and this process's own mask is as it was
-    assert not signal.pthread_sigmask(signal.SIG_BLOCK, set()) & cli.HELD_SIGNALS
+    assert not signal.pthread_sigmask(signal.SIG_BLOCK, set()) & batch.HELD_SIGNALS
 
 
 def test_signal_hold_defers_and_raises_on_leaving():
-    hold = cli.SignalHold()
+    hold = batch.SignalHold()
     assert not hold.holding()
     with pytest.raises(KeyboardInterrupt):
         with hold.hold():
@@ -83,8 +83,8 @@ def test_sigint_during_a_runs_start_stops_and_lists_it(tmp_path, monkeypatch):
         os.kill(os.getpid(), signal.SIGINT)    # lands before the run is in the table
         time.sleep(0.2)
         return p
-    monkeypatch.setattr(cli.subprocess, "Popen", popen_hit_by_sigint)
-    hold = cli.SignalHold()
+    monkeypatch.setattr(batch.subprocess, "Popen", popen_hit_by_sigint)
+    hold = batch.SignalHold()
 
     def on_signal(signum, frame):
         if hold.holding():
@@ -94,8 +94,8 @@ def test_sigint_during_a_runs_start_stops_and_lists_it(tmp_path, monkeypatch):
     old = signal.signal(signal.SIGINT, on_signal)
     try:
         configs = [ExperimentConfig(), ExperimentConfig()]
-        with pytest.raises(cli.BatchInterrupted) as e:
-            cli.run_batch(configs, 1, str(child), out=lambda *_: None, hold=hold)
+        with pytest.raises(batch.BatchInterrupted) as e:
+            batch.run_batch(configs, 1, str(child), out=lambda *_: None, hold=hold)
     finally:
         signal.signal(signal.SIGINT, old)
     first, second = e.value.results

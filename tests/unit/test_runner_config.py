@@ -200,6 +200,6 @@ def test_patrol_agents_robot_ids():
 
 
 def test_batch_exit_status_of_a_child_killed_by_a_signal():
-    from patrolling_sim.runner.cli import exit_status
+    from patrolling_sim.runner.batch import exit_status
     assert exit_status(-2) == 130 and exit_status(-15) == 143      # as a shell reports them
     assert exit_status(0) == 0 and exit_status(3) == 3 and exit_status(None) is None

@@ -16,17 +16,13 @@ when a node crashed, 130 on SIGINT, 143 on SIGTERM (patrolling_sim.run_status); 
 is recorded in info.csv and ``<prefix>_run.yaml``. With ``--batch``, flags given on the
 command line override every entry of the batch; a batch exits 0 only if every run did.
 """
-import contextlib
 import os
 import signal
-import subprocess
 import sys
-import threading
-import time
 
 from ..cli import CliParser, run_main, setup_logging
 from ..errors import PatrolInputError
-from .batch import load_batch
+from .batch import BatchInterrupted, SignalHold, load_batch, print_batch_table, run_batch
 from .config import ExperimentConfig, from_positional, load_config_file
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
@@ -192,149 +188,6 @@ def scenario_summary(prefix):
             f"{int(tot.get('lost', 0))} ({100.0 * int(tot.get('lost', 0)) / sent:.1f} %)"
             if sent else "")
     return f"scenario: comm {doc.get('comm')}; failures {fails}{msgs}"
-
-
-def exit_status(returncode):
-    """A child's exit status as a shell reports it: a death by signal N (Popen's -N, e.g. a
-    SIGINT that arrived before the child's interpreter had installed its handlers) is
-    128 + N, so 130 / 143 mean interrupted whether the child handled the signal or not."""
-    return 128 - returncode if returncode is not None and returncode < 0 else returncode
-
-
-class SignalHold:
-    """Holds the interruption a signal handler would raise while a run is being started, so
-    that a run whose process exists is always in the table of running ones (and is stopped
-    and listed as interrupted): the handler asks :meth:`holding` and, if so, calls
-    :meth:`defer` instead of raising; leaving :meth:`hold` raises it."""
-
-    def __init__(self):
-        self._depth = 0
-        self._pending = False
-
-    def holding(self):
-        return self._depth > 0
-
-    def defer(self):
-        self._pending = True
-
-    @contextlib.contextmanager
-    def hold(self):
-        self._depth += 1
-        try:
-            yield
-        finally:
-            self._depth -= 1
-            if not self._depth and self._pending:
-                self._pending = False
-                raise KeyboardInterrupt
-
-
-#: the signals a batch forwards to its runs (and holds while starting one)
-HELD_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
-
-
-def spawn_with_signals_held(args, **popen_kwargs) -> subprocess.Popen:
-    """``subprocess.Popen`` with SIGINT and SIGTERM blocked in the child until it unblocks
-    them (``scripts/early_signal.py`` does, once its handlers are installed). A signal sent
-    to the child before that stays pending instead of interrupting the interpreter's start-up
-    (exit 1 and a traceback, not the run's 130 / 143: seen under load when a batch was
-    interrupted just after starting a run). Blocked here for the few microseconds of the
-    fork too; a signal to this process meanwhile is delivered when the mask is restored."""
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, HELD_SIGNALS)
-    try:
-        return subprocess.Popen(args, **popen_kwargs)
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
-def run_batch(configs, parallel, argv0, out=print, hold=None):
-    """Run validated configurations, ``parallel`` at a time, each in its own process
-    (each with its own ROS master). Returns the list of (config, exit code, result line).
-    ``hold``: the :class:`SignalHold` the caller's signal handler consults (a run's start,
-    from its log file to its entry in the running table, is not cut by a signal)."""
-    import shutil
-    import tempfile
-    hold = hold or SignalHold()
-    pending = list(enumerate(configs))
-    running = {}
-    results = [None] * len(configs)
-    tmpdir = tempfile.mkdtemp(prefix="patrol_batch_")
-    done = 0
-    try:
-        while pending or running:
-            while pending and len(running) < parallel:
-                with hold.hold():
-                    i, cfg = pending.pop(0)
-                    path = os.path.join(tmpdir, f"run_{i}.yaml")
-                    cfg.save(path)
-                    logf = open(os.path.join(tmpdir, f"run_{i}.out"), "w+")
-                    p = spawn_with_signals_held(
-                        [sys.executable, argv0, "--headless", "--config", path], stdout=logf,
-                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                        start_new_session=True)
-                    running[i] = (p, logf, time.monotonic())
-            time.sleep(0.5)
-            for i, (p, logf, t0) in list(running.items()):
-                if p.poll() is None:
-                    continue
-                logf.seek(0)
-                lines = logf.read().splitlines()
-                logf.close()
-                res = next((l for l in reversed(lines) if l.startswith("results:")), "")
-                why = next((l for l in reversed(lines) if l.startswith("result:")
-                            or ": error:" in l), "")
-                results[i] = (configs[i], exit_status(p.returncode), why, res,
-                              time.monotonic() - t0)
-                del running[i]
-                done += 1
-                c = configs[i]
-                out(f"[{done}/{len(configs)}] run {i + 1}: {c.map_name} N={c.robots} {c.alg} "
-                    f"seed={c.seed} -> exit {exit_status(p.returncode)} "
-                    f"({time.monotonic() - t0:.0f} s) {res}")
-    except KeyboardInterrupt:
-        out("batch interrupted: stopping running experiments")
-        for i, (p, logf, t0) in running.items():
-            try:
-                os.kill(p.pid, signal.SIGINT)
-            except OSError:
-                pass
-        for i, (p, logf, t0) in running.items():
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-            logf.seek(0)
-            lines = logf.read().splitlines()
-            logf.close()
-            res = next((l for l in reversed(lines) if l.startswith("results:")), "")
-            results[i] = (configs[i], exit_status(p.returncode), "interrupted", res,
-                          time.monotonic() - t0)
-        raise BatchInterrupted(results)
-    finally:
-        shutil.rmtree(tmpdir, ignore_errors=True)
-    return results
-
-
-class BatchInterrupted(Exception):
-    """The batch was interrupted; ``results`` as :func:`run_batch` returns them (None for
-    runs never started)."""
-
-    def __init__(self, results):
-        super().__init__("batch interrupted")
-        self.results = results
-
-
-def print_batch_table(results, out=print):
-    out("")
-    out(f"{'#':>3}  {'map':<14} {'N':>3} {'alg':<6} {'seed':>5} {'exit':>4}  {'wall s':>7}  result")
-    for k, r in enumerate(results):
-        if r is None:
-            out(f"{k + 1:>3}  {'-':<14} {'':>3} {'':<6} {'':>5} {'':>4}  {'':>7}  never started")
-            continue
-        cfg, code, why, res, wall = r
-        out(f"{k + 1:>3}  {cfg.map_name:<14} {cfg.robots:>3} {cfg.alg:<6} {cfg.seed:>5} "
-            f"{code:>4}  {wall:>7.0f}  {res[len('results: '):] if res else why}")
 
 
 def main(argv):
