@@ -67,9 +67,11 @@ def results(tmp_path):
 
 def on_time(recorded, scheduled):
     """A failure/repair time the monitor recorded (when the report arrived) against the
-    schedule: never early; late by the agent's timer latency times the pace (on a loaded
-    machine at 30x a few sim seconds)."""
-    return scheduled - 0.05 <= recorded <= scheduled + 6.0
+    schedule: late by the agent's timer latency times the pace (on a loaded machine at 30x a
+    few sim seconds); early only by the monitor's own clock lagging the agent's: each node
+    keeps the latest /clock it has received, and a loaded monitor can be a few 0.02 s steps
+    behind (ci28: a repair due at 180.0 recorded at 179.92)."""
+    return scheduled - 0.5 <= recorded <= scheduled + 6.0
 
 
 def follow_pose(proc, robot, topic):
