@@ -21,29 +21,20 @@ import os
 import signal
 import subprocess
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional
+
+from patrolling_sim.runner.proctree import proc_stat
 
 #: process group id -> start time (clock ticks since boot) of the process that leads it
 _started: Dict[int, int] = {}
 _installed = False
 
 
-def _stat(pid: int) -> Optional[Tuple[str, int, int]]:
-    """(state, process group, start time) of ``pid`` from /proc, None if it is gone."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()
-    except OSError:
-        return None
-    # after the command: state(0) ppid(1) pgrp(2) session(3) ... starttime(19)
-    return fields[0].decode(), int(fields[2]), int(fields[19])
-
-
 def record(pid: int) -> None:
     """Remember the group led by ``pid`` (a process just started in a group of its own)."""
-    st = _stat(pid)
+    st = proc_stat(pid)
     if st is not None:
-        _started[pid] = st[2]
+        _started[pid] = st.starttime
 
 
 class _RecordingPopen(subprocess.Popen):
@@ -66,14 +57,14 @@ def members(pgid: int, leader_start: Optional[int] = None) -> List[int]:
     """Live (not zombie) processes of the group ``pgid``; none if its leader is alive but is
     not the process recorded (its start time differs)."""
     if leader_start is not None:
-        lead = _stat(pgid)
-        if lead is not None and lead[1] == pgid and lead[2] != leader_start:
+        lead = proc_stat(pgid)
+        if lead is not None and lead.pgrp == pgid and lead.starttime != leader_start:
             return []
     out = []
     for d in os.listdir("/proc"):
         if d.isdigit():
-            st = _stat(int(d))
-            if st is not None and st[1] == pgid and st[0] != "Z":
+            st = proc_stat(int(d))
+            if st is not None and st.pgrp == pgid and st.state != "Z":
                 out.append(int(d))
     return out
 

@@ -281,17 +281,17 @@ def _live_children():
     """Ids of this process's children that are not zombies (Linux /proc), except
     multiprocessing's resource tracker (started with the first spawned process, it lives as
     long as this process by design)."""
+    from patrolling_sim.runner.proctree import proc_stat
     me, out = os.getpid(), set()
     for d in os.listdir("/proc"):
         if d.isdigit():
+            st = proc_stat(d)
             try:
-                with open(f"/proc/{d}/stat") as f:
-                    fields = f.read().rsplit(")", 1)[1].split()
                 with open(f"/proc/{d}/cmdline", "rb") as f:
                     cmd = f.read()
             except OSError:
                 continue
-            if (int(fields[1]) == me and fields[0] != "Z"
+            if (st is not None and st.ppid == me and st.state != "Z"
                     and b"multiprocessing.resource_tracker" not in cmd):
                 out.add(int(d))
     return out

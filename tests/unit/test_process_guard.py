@@ -7,6 +7,7 @@ import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import process_guard  # noqa: E402
+from patrolling_sim.runner.proctree import proc_stat  # noqa: E402
 
 
 def _spawn(script):
@@ -37,7 +38,7 @@ def test_orphans_of_a_dead_leader_are_stopped():
     and stopped by the group's id."""
     p = _spawn("sleep 300 & sleep 300 & wait")
     process_guard._started.pop(p.pid, None)      # this test stops it itself
-    start = process_guard._stat(p.pid)[2]
+    start = proc_stat(p.pid).starttime
     _wait_members(p.pid, 3)
     os.kill(p.pid, signal.SIGKILL)
     p.wait()
@@ -51,7 +52,7 @@ def test_orphans_of_a_dead_leader_are_stopped():
 def test_a_group_that_ignores_sigterm_gets_sigkill():
     p = _spawn("trap '' TERM; sleep 300 & wait")
     process_guard._started.pop(p.pid, None)
-    start = process_guard._stat(p.pid)[2]
+    start = proc_stat(p.pid).starttime
     _wait_members(p.pid, 2)
     stopped = process_guard.stop_groups({p.pid: start}, grace=0.5)
     p.wait()
@@ -62,7 +63,7 @@ def test_a_live_leader_with_another_start_time_is_not_ours():
     p = _spawn("sleep 300")
     process_guard._started.pop(p.pid, None)
     try:
-        start = process_guard._stat(p.pid)[2]
+        start = proc_stat(p.pid).starttime
         _wait_members(p.pid, 1)
         assert process_guard.members(p.pid, start + 1) == []
         assert process_guard.stop_groups({p.pid: start + 1}, grace=0.5) == {}

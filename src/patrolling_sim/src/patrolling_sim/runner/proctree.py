@@ -8,10 +8,19 @@ signalled) and can stop the survivors. It never looks processes up by name.
 import os
 import signal
 import time
+from typing import NamedTuple, Optional
 
 
-def _stat(pid):
-    """(ppid, starttime) of a live process, or None."""
+class ProcStat(NamedTuple):
+    """The fields of ``/proc/<pid>/stat`` this project reads."""
+    state: str          # "R", "S", ..., "Z" for a zombie
+    ppid: int
+    pgrp: int           # process group id
+    starttime: int      # clock ticks since boot: with the pid, identifies the process
+
+
+def proc_stat(pid) -> Optional[ProcStat]:
+    """:class:`ProcStat` of a process, or None if it is gone."""
     try:
         with open(f"/proc/{pid}/stat", "rb") as f:
             data = f.read().decode(errors="replace")
@@ -20,7 +29,7 @@ def _stat(pid):
     # the command name may contain spaces and parentheses: split after the last ')'
     rest = data[data.rfind(")") + 2:].split()
     try:
-        return int(rest[1]), int(rest[19])
+        return ProcStat(rest[0], int(rest[1]), int(rest[2]), int(rest[19]))
     except (IndexError, ValueError):
         return None
 
@@ -30,9 +39,9 @@ def _children_map():
     for name in os.listdir("/proc"):
         if not name.isdigit():
             continue
-        st = _stat(int(name))
+        st = proc_stat(int(name))
         if st:
-            kids.setdefault(st[0], []).append(int(name))
+            kids.setdefault(st.ppid, []).append(int(name))
     return kids
 
 
@@ -48,25 +57,19 @@ class ProcessTree:
         stack = [self.root]
         while stack:
             pid = stack.pop()
-            st = _stat(pid)
+            st = proc_stat(pid)
             if st is None:
                 continue
-            self.known.setdefault(pid, st[1])
+            self.known.setdefault(pid, st.starttime)
             stack.extend(kids.get(pid, []))
 
     def alive(self):
         """Known processes still running (same pid and start time)."""
         out = []
         for pid, start in self.known.items():
-            st = _stat(pid)
-            if st is not None and st[1] == start:
-                try:
-                    with open(f"/proc/{pid}/stat", "rb") as f:
-                        state = f.read().decode(errors="replace")
-                    if state[state.rfind(")") + 2] == "Z":
-                        continue        # zombie: already dead, waiting to be reaped
-                except OSError:
-                    continue
+            st = proc_stat(pid)
+            # a zombie is already dead, waiting to be reaped
+            if st is not None and st.starttime == start and st.state != "Z":
                 out.append(pid)
         return out
 
