@@ -125,6 +125,14 @@ def spawn_with_signals_held(args, **popen_kwargs) -> subprocess.Popen:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
+def _read_run_log(logf):
+    """(lines, last "results:" line or "") of a finished run's log file, which it closes."""
+    logf.seek(0)
+    lines = logf.read().splitlines()
+    logf.close()
+    return lines, next((l for l in reversed(lines) if l.startswith("results:")), "")
+
+
 def run_batch(configs, parallel, argv0, out=print, hold=None):
     """Run validated configurations, ``parallel`` at a time, each in its own process
     (each with its own ROS master). Returns the list of (config, exit code, result line).
@@ -155,10 +163,7 @@ def run_batch(configs, parallel, argv0, out=print, hold=None):
             for i, (p, logf, t0) in list(running.items()):
                 if p.poll() is None:
                     continue
-                logf.seek(0)
-                lines = logf.read().splitlines()
-                logf.close()
-                res = next((l for l in reversed(lines) if l.startswith("results:")), "")
+                lines, res = _read_run_log(logf)
                 why = next((l for l in reversed(lines) if l.startswith("result:")
                             or ": error:" in l), "")
                 results[i] = (configs[i], exit_status(p.returncode), why, res,
@@ -182,10 +187,7 @@ def run_batch(configs, parallel, argv0, out=print, hold=None):
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
-            logf.seek(0)
-            lines = logf.read().splitlines()
-            logf.close()
-            res = next((l for l in reversed(lines) if l.startswith("results:")), "")
+            _, res = _read_run_log(logf)
             results[i] = (configs[i], exit_status(p.returncode), "interrupted", res,
                           time.monotonic() - t0)
         raise BatchInterrupted(results)
