@@ -103,20 +103,26 @@ def test_interrupted_campaign_resumes_to_the_clean_result(tmp_path):
                        timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
 
-    # interrupt once some runs are stored (SIGINT as Ctrl-C), then resume
+    # interrupt once some runs are stored, then resume. SIGINT as a terminal's Ctrl-C sends
+    # it: to the whole process group, so the Dask workers get it too
     proc = subprocess.Popen(cmd + ["--out", resumed], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=_env())
+                            stderr=subprocess.STDOUT, text=True, env=_env(),
+                            start_new_session=True)
     state_dir = os.path.join(resumed, "state")
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None:
         if os.path.isdir(state_dir) and len(os.listdir(state_dir)) >= 3:
-            proc.send_signal(signal.SIGINT)
+            os.killpg(proc.pid, signal.SIGINT)
             break
         time.sleep(0.05)
     out, _ = proc.communicate(timeout=300)
     done_first = len(load_state(resumed))
     if proc.returncode == 130:
         assert "interrupted" in out and 3 <= done_first < 12
+        # the workers ignore it (campaign_tasks.IgnoreSigint): no traceback of theirs, no
+        # warning about killing them
+        assert "Traceback" not in out and "KeyboardInterrupt" not in out, out[-3000:]
+        assert "killing" not in out, out[-3000:]
     else:                     # the campaign finished before the signal could land
         assert proc.returncode == 0 and done_first == 12
     assert _info_count(resumed) == done_first               # complete files for every record

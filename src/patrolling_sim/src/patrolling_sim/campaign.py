@@ -29,6 +29,7 @@ system) and only the client writes files: the usual result files in the usual tr
 """
 import asyncio
 import datetime
+import logging
 import os
 import platform
 import signal
@@ -45,7 +46,7 @@ from .campaign_spec import (DONE_STATUSES, FAILED_STATUSES, MODES, RESULTS_DIR, 
                             load_campaign, run_key)
 from .campaign_store import (load_state, needs_run, store_result, summary_table,  # noqa: F401
                              write_table, _write_atomic)
-from .campaign_tasks import chunks, run_graph_chunk, run_graph_task, run_ros_task  # noqa: F401,E501
+from .campaign_tasks import IgnoreSigint, chunks, run_graph_chunk, run_graph_task, run_ros_task  # noqa: F401,E501
 
 
 class _Progress:
@@ -209,6 +210,8 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             else:
                 cluster = starting.result()
                 client = Client(cluster)
+                # our workers ignore a terminal's Ctrl-C (campaign_tasks.IgnoreSigint)
+                client.register_worker_plugin(IgnoreSigint(), name="ignore-sigint")
             link = getattr(client, "dashboard_link", None)
             stream.write(f"campaign {campaign.name}: {len(campaign.runs)} runs, {skipped} already "
                          f"done, {len(todo)} to run on {len(client.scheduler_info()['workers'])} "
@@ -275,6 +278,11 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
         try:
             if starting is not None and cluster is None:
                 cluster = starting.result_or_none()    # interrupted while it was starting
+            if interrupted["sig"] is not None:
+                # a worker busy with a run is killed after a few seconds when the cluster
+                # closes: expected after an interruption (its runs are recorded as not
+                # run), so Dask's warning about it is not shown
+                logging.getLogger("distributed.nanny").setLevel(logging.ERROR)
             for closing in (client, cluster):
                 if closing is not None:
                     try:

@@ -5,13 +5,33 @@ import datetime
 import os
 import platform
 import resource
+import signal
 import socket
 import subprocess
 import tempfile
+import threading
 import time
 from typing import Dict, List
 
 import yaml
+
+
+class IgnoreSigint:
+    """Worker plugin (``distributed.WorkerPlugin`` protocol) that the campaign registers on
+    the workers of the LocalCluster it starts.
+
+    Those workers share the campaign's process group, so a terminal's Ctrl-C reaches them as
+    well as the campaign, and Dask's worker process then dies in its own KeyboardInterrupt
+    traceback after the campaign's clean "interrupted" line. With this plugin a worker
+    ignores SIGINT; the campaign stops its cluster itself. A ROS run that a worker starts
+    installs its own handlers (scripts/early_signal.py), so it still stops on Ctrl-C."""
+
+    def setup(self, worker=None):
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def teardown(self, worker=None):
+        pass
 
 class WorldCache:
     """Patrol graphs (per map) and start vertices (per map, team size and initpos; and
