@@ -61,7 +61,11 @@ def main():
     keys = sorted(cells)
     if a.from_campaign:
         import pandas as pd
-        df = pd.read_csv(os.path.join(a.from_campaign, "runs.csv"))
+        table = os.path.join(a.from_campaign, "runs.csv")
+        if not os.path.isfile(table):
+            sys.exit(f"reference_estimate.py: --from-campaign: no runs.csv in {a.from_campaign} "
+                     "(a campaign writes it when it ends or is interrupted)")
+        df = pd.read_csv(table)
         df = df[df["status"].isin(["TIMEOUT", "CYCLES"])]
         g = df.groupby(["map", "robots", "alg"])["cpu_s"].mean()
         missing = [k for k in keys if k not in g.index]
