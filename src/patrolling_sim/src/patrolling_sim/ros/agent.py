@@ -4,10 +4,13 @@ the one implementation of a robot's life cycle (see ``docs/protocol.md``).
 This module only connects the core to ROS: the ``robot_i/move_base`` action client (goals,
 feedback, outcomes), ``/results`` and ``/positions``, one-shot rospy timers on ROS time,
 the back-up twists on ``robot_i/cmd_vel`` and the ``clear_costmaps`` service. Every callback
-takes ``self.lock`` and hands the event to the core; nothing blocks inside a callback.
+takes ``self.lock`` and hands the event to the core; nothing blocks inside a callback. A
+goal's outcome is the exception: actionlib reports it holding the goal's own mutex, so it is
+handed to the node's outcome thread, which takes ``self.lock`` (see :meth:`_on_transition`).
 Start-up: load the graph, read ``/initial_pos`` (start vertex = nearest vertex, |dx|+|dy|),
 wait for ``robot_i/move_base`` (logging every 5 s), then the core announces and waits for GO.
 """
+import queue
 import re
 import threading
 
@@ -73,6 +76,7 @@ class PatrolAgent(Effects):
 
         self.lock = threading.RLock()
         self.gh = None                 # ClientGoalHandle of the active goal
+        self._start_outcome_thread()
         self.timers = set()
         self.clamp_warned = False
         self.announce_timer = None
@@ -247,13 +251,33 @@ class PatrolAgent(Effects):
             self.core.on_position(k, p.x, p.y)
 
     def _on_transition(self, gh, seq):
+        """actionlib calls this holding the goal's mutex. Taking ``self.lock`` here could
+        deadlock: a thread holding ``self.lock`` may be cancelling this very goal (an
+        interference, a new goal replacing it), and ``gh.cancel()`` waits for that mutex.
+        So the outcome is queued and handled by the outcome thread (:meth:`_outcome_loop`);
+        seen in a 16-robot run, where one agent froze for good at an interference."""
         if gh.get_comm_state() != actionlib.CommState.DONE:
             return
+        self.outcomes.put((gh, seq, gh.get_goal_status()))
+
+    def _start_outcome_thread(self):
+        self.outcomes = queue.SimpleQueue()     # (goal handle, seq, status): _on_transition
+        threading.Thread(target=self._outcome_loop, daemon=True,
+                         name=f"robot{self.id}-goal-outcomes").start()
+
+    def _outcome_loop(self):
+        while True:
+            gh, seq, status = self.outcomes.get()
+            try:
+                self._on_outcome(gh, seq, status)
+            except Exception as e:  # a failing handler must not end the thread silently
+                rospy.logerr("robot %d: error handling a goal outcome: %s", self.id, e)
+
+    def _on_outcome(self, gh, seq, status):
         with self.lock:
             if seq != self.core.seq:
                 return
-            status = gh.get_goal_status()
-            if gh is self.gh:
+            if gh == self.gh:        # actionlib passes a new handle each time: not `is`
                 self.gh = None
             if status != GoalStatus.SUCCEEDED:
                 rospy.logwarn("robot %d: goal to vertex %s failed (status %d)", self.id,
