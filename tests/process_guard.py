@@ -27,6 +27,8 @@ from patrolling_sim.runner.proctree import proc_stat
 
 #: process group id -> start time (clock ticks since boot) of the process that leads it
 _started: Dict[int, int] = {}
+#: s to wait for SIGKILLed processes to be gone (they take milliseconds; a bound, no more)
+KILL_WAIT = 30.0
 _installed = False
 
 
@@ -71,24 +73,25 @@ def members(pgid: int, leader_start: Optional[int] = None) -> List[int]:
 
 def stop_groups(groups: Dict[int, int], grace: float = 15.0) -> Dict[int, List[int]]:
     """Stop every process still in one of ``groups`` (group id -> leader start time):
-    SIGTERM to each group, SIGKILL to those still alive after ``grace`` seconds. Returns the
-    groups that had processes, with the ids found."""
+    SIGTERM to each group, SIGKILL to those still alive after ``grace`` seconds; returns once
+    they are gone (SIGKILL is delivered asynchronously: a killed process is still listed for a
+    moment), or after ``KILL_WAIT`` s. Returns the groups that had processes, with the ids
+    found."""
     found = {g: members(g, t) for g, t in groups.items()}
     found = {g: pids for g, pids in found.items() if pids}
-    for g in found:
-        try:
-            os.killpg(g, signal.SIGTERM)
-        except OSError:
-            pass
-    end = time.monotonic() + grace
-    while time.monotonic() < end and any(members(g, groups[g]) for g in found):
-        time.sleep(0.2)
-    for g in found:
-        if members(g, groups[g]):
-            try:
-                os.killpg(g, signal.SIGKILL)
-            except OSError:
-                pass
+
+    def signal_and_wait(sig, wait):
+        for g in found:
+            if members(g, groups[g]):
+                try:
+                    os.killpg(g, sig)
+                except OSError:
+                    pass
+        end = time.monotonic() + wait
+        while time.monotonic() < end and any(members(g, groups[g]) for g in found):
+            time.sleep(0.05)
+    signal_and_wait(signal.SIGTERM, grace)
+    signal_and_wait(signal.SIGKILL, KILL_WAIT)
     return found
 
 

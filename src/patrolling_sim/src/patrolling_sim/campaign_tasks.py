@@ -30,8 +30,6 @@ class IgnoreSigint:
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, signal.SIG_IGN)
 
-    def teardown(self, worker=None):
-        pass
 
 class WorldCache:
     """Patrol graphs (per map) and start vertices (per map, team size and initpos; and
