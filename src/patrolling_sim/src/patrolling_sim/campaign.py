@@ -278,17 +278,20 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
         try:
             if starting is not None and cluster is None:
                 cluster = starting.result_or_none()    # interrupted while it was starting
+            # a worker busy with a run is killed after a few seconds when the cluster
+            # closes: expected after an interruption (its runs are recorded as not run), so
+            # Dask's warning about it is not shown; the level is restored afterwards
+            nanny_log = logging.getLogger("distributed.nanny")
+            nanny_level = nanny_log.level
             if interrupted["sig"] is not None:
-                # a worker busy with a run is killed after a few seconds when the cluster
-                # closes: expected after an interruption (its runs are recorded as not
-                # run), so Dask's warning about it is not shown
-                logging.getLogger("distributed.nanny").setLevel(logging.ERROR)
+                nanny_log.setLevel(logging.ERROR)
             for closing in (client, cluster):
                 if closing is not None:
                     try:
                         closing.close()
                     except Exception:
                         pass
+            nanny_log.setLevel(nanny_level)     # this process may run another campaign
             table = write_table(out, campaign, state)
             # a signal that came once every run was stored interrupted nothing
             stopped = interrupted["sig"] is not None and ran < len(todo)
