@@ -7,6 +7,7 @@ files report tests with no failure or error.
 """
 import glob
 import os
+import signal
 import subprocess
 import xml.etree.ElementTree as ET
 
@@ -46,10 +47,40 @@ def junit_summary(ros_home):
     return tests, failures, errors, msgs
 
 
+#: wall s that rostest gets after SIGINT to stop its nodes before it is killed: roslaunch
+#: itself gives a node 15 s after SIGINT, then 2 s after SIGTERM (a bound, not a wait)
+STOP_GRACE = 30.0
+
+
+def stop_rostest(proc):
+    """Stop a running rostest as Ctrl-C in its terminal would: SIGINT, so that it shuts its
+    launch down (roslaunch starts every node in a session of its own, which a signal to
+    rostest's group does not reach, and which would outlive a killed rostest), then SIGKILL
+    if it is still running after ``STOP_GRACE`` s. Returns (stdout, stderr) read so far."""
+    try:
+        proc.send_signal(signal.SIGINT)
+    except OSError:
+        pass
+    try:
+        return proc.communicate(timeout=STOP_GRACE)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.communicate()
+
+
 def run_rostest(pkg, path, ros_home, timeout=600, args=()):
+    """Run one rostest (its own session, so that the process guard knows it) and return its
+    ``CompletedProcess``. On a timeout, Ctrl-C or pytest's SIGTERM the rostest is stopped with
+    :func:`stop_rostest`, which lets it stop its nodes, and the exception goes on."""
     env = dict(ros_env())
     env["ROS_HOME"] = str(ros_home)
     env["ROS_LOG_DIR"] = os.path.join(str(ros_home), "log")
-    proc = subprocess.run(["rostest", pkg, os.path.basename(path), *args], env=env,
-                          capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-    return proc
+    cmd = ["rostest", pkg, os.path.basename(path), *args]
+    with subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, cwd=ROOT, start_new_session=True) as proc:
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        except BaseException:
+            stop_rostest(proc)
+            raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
