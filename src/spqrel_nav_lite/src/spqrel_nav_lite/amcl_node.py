@@ -43,7 +43,7 @@ class Amcl:
         self._p = functools.partial(param, ns=ns)
         self.pose_listeners = list(pose_listeners)
         ns_param = ns
-        r = robot_ns
+        self.robot_ns = r = robot_ns       # prefix of this robot's log lines in a nav_host
         ns = robot_ns.strip("/") + "/" if robot_ns.strip("/") else namespace_prefix()
         self.global_frame = strip_slash(self._p("global_frame_id", "map", str))
         self.odom_frame = strip_slash(self._p("odom_frame_id", ns + "odom", str))
@@ -118,13 +118,14 @@ class Amcl:
             self.pf.init_gaussian(p, c[0] if c[0] > 0 else 0.25, c[7] if c[7] > 0 else 0.25,
                                   c[35] if c[35] > 0 else (math.pi / 12) ** 2)
             self.force_update = True
-        rospy.loginfo("amcl: initial pose set to (%.2f, %.2f, %.2f)", *p)
+        rospy.loginfo("%samcl: initial pose set to (%.2f, %.2f, %.2f)", self.robot_ns, *p)
 
     def on_global(self, _req):
         with self.lock:
             self.pf.init_uniform()
             self.force_update = True
-        rospy.loginfo("amcl: global localisation, %d particles", len(self.pf.particles))
+        rospy.loginfo("%samcl: global localisation, %d particles", self.robot_ns,
+                      len(self.pf.particles))
         return EmptyResponse()
 
     def on_scan(self, msg):
@@ -193,8 +194,8 @@ class Amcl:
 def log_update_times(node):
     if node.update_times:
         t = np.array(node.update_times) * 1e3
-        rospy.loginfo("amcl: %d updates, median %.2f ms, p95 %.2f ms", len(t), np.median(t),
-                      np.percentile(t, 95))
+        rospy.loginfo("%samcl: %d updates, median %.2f ms, p95 %.2f ms", node.robot_ns, len(t),
+                      np.median(t), np.percentile(t, 95))
 
 
 def main():

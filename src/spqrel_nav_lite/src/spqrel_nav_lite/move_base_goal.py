@@ -25,7 +25,7 @@ class GoalExecution:
                 nxt = self.run_goal(goal_msg)
             except Aborted as e:
                 self.stop()
-                rospy.logwarn("move_base: goal aborted: %s", e)
+                rospy.logwarn("%smove_base: goal aborted: %s", self.robot_ns, e)
                 self.server.set_aborted(MoveBaseResult(), str(e))
                 return
             except rospy.ROSInterruptException:
@@ -33,7 +33,7 @@ class GoalExecution:
                 return
             except Exception as e:     # never leave the robot driving on a bug
                 self.stop()
-                rospy.logerr("move_base: internal error: %r", e)
+                rospy.logerr("%smove_base: internal error: %r", self.robot_ns, e)
                 self.server.set_aborted(MoveBaseResult(), f"internal error: {e!r}")
                 return
             self.stop()
@@ -51,7 +51,7 @@ class GoalExecution:
         try:
             self.server.set_aborted(MoveBaseResult(), "navigation shutting down")
         except Exception as e:  # the result publisher may already be closed: nothing to tell
-            rospy.logdebug("move_base: aborting the goal at shutdown: %r", e)
+            rospy.logdebug("%smove_base: aborting the goal at shutdown: %r", self.robot_ns, e)
 
     def run_goal(self, goal_msg):
         """Drive to the goal. Returns a new goal if preempted by one, None when finished."""
@@ -130,7 +130,7 @@ class GoalExecution:
                 except PlanningError as e:
                     if blocked_since is None:
                         blocked_since = now
-                    rospy.logdebug("move_base: replanning failed: %s", e)
+                    rospy.logdebug("%smove_base: replanning failed: %s", self.robot_ns, e)
             cmd = compute_command(pose, self.v, self.w, path, index, near, dt, self.cp, dynamic)
             index = cmd.index
             if cmd.done:
@@ -154,8 +154,8 @@ class GoalExecution:
                     f"no progress for {self.controller_patience:.0f} s"
                 if recoveries > self.max_recoveries:
                     raise Aborted(f"{reason}; giving up after {self.max_recoveries} recoveries")
-                rospy.loginfo("move_base: %s, recovery %d/%d", reason, recoveries,
-                              self.max_recoveries)
+                rospy.loginfo("%smove_base: %s, recovery %d/%d", self.robot_ns, reason,
+                              recoveries, self.max_recoveries)
                 res = self.recover(recoveries, goal, rate)
                 if res is not None:
                     return res
