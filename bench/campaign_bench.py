@@ -15,7 +15,9 @@ without it. CPU seconds are the campaign process tree's (client, scheduler, work
 
 Each measurement is repeated ``--repeat`` times and the fastest is kept (as ``timeit`` does:
 on a shared virtual machine the slower repetitions measure the neighbours, not the code); the
-range of the repetitions is printed beside it.
+range and the median of the repetitions are printed beside it. The repetitions are
+interleaved (loop, 1 worker, 2 workers, 1 run; then again), so that a slow spell of the
+machine touches every measurement alike instead of all repetitions of one.
 """
 import argparse
 import datetime
@@ -23,6 +25,7 @@ import os
 import platform
 import resource
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -88,27 +91,22 @@ def main():
     if a.runs < 1 or a.repeat < 1:
         ap.error("--runs and --repeat must be >= 1")
     tmp = tempfile.mkdtemp(prefix="campaign_bench_")
-    spread = {}
-
-    def best(name, fn):
-        got = []
-        for i in range(a.repeat):
-            got.append(fn(i))
-        spread[name] = (min(t for t, _ in got), max(t for t, _ in got))
-        return min(got)
-
+    names = ("loop in one process", "campaign, 1 worker", "campaign, 2 workers",
+             "campaign of 1 run (fixed cost)")
+    got = {name: [] for name in names}
     try:
         path = campaign_file(tmp, a)
         one_path = campaign_file(tmp, a, 1, "one.yaml")
-        loop = best("loop in one process", lambda i: timed_loop(path))
-        w1 = best("campaign, 1 worker",
-                  lambda i: timed_campaign(path, os.path.join(tmp, f"w1_{i}"), 1))
-        w2 = best("campaign, 2 workers",
-                  lambda i: timed_campaign(path, os.path.join(tmp, f"w2_{i}"), 2))
-        one = best("campaign of 1 run (fixed cost)",
-                   lambda i: timed_campaign(one_path, os.path.join(tmp, f"one_{i}"), 1))
+        for i in range(a.repeat):          # interleaved: see the module's docstring
+            got[names[0]].append(timed_loop(path))
+            got[names[1]].append(timed_campaign(path, os.path.join(tmp, f"w1_{i}"), 1))
+            got[names[2]].append(timed_campaign(path, os.path.join(tmp, f"w2_{i}"), 2))
+            got[names[3]].append(timed_campaign(one_path, os.path.join(tmp, f"one_{i}"), 1))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    spread = {k: (min(t for t, _ in v), statistics.median(t for t, _ in v),
+                  max(t for t, _ in v)) for k, v in got.items()}
+    loop, w1, w2, one = (min(got[k]) for k in names)
     n = a.runs
     fixed = one[0] - loop[0] / n
     uptime = os.getloadavg()
@@ -117,19 +115,28 @@ def main():
           f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; "
           f"{n} runs of {a.map}/{a.robots} robots/{a.alg}/{a.duration:.0f} s, "
           f"fastest of {a.repeat}\n")
-    print(f"| how | wall (s) | runs/s | per run (ms) | CPU (s) | wall range of {a.repeat} (s) |")
-    print("|---|---|---|---|---|---|")
-    for name, (t, c) in (("loop in one process", loop), ("campaign, 1 worker", w1),
-                         ("campaign, 2 workers", w2), ("campaign of 1 run (fixed cost)", one)):
+    print(f"| how | wall (s) | runs/s | per run (ms) | CPU (s) | wall range of {a.repeat} (s) | "
+          "median (s) |")
+    print("|---|---|---|---|---|---|---|")
+    for name, (t, c) in zip(names, (loop, w1, w2, one)):
         k = 1 if name.endswith("(fixed cost)") else n
-        lo, hi = spread[name]
+        lo, med, hi = spread[name]
         print(f"| {name} | {t:.1f} | {k / t:.2f} | {1000 * t / k:.1f} | {c:.1f} | "
-              f"{lo:.1f}-{hi:.1f} |")
+              f"{lo:.1f}-{hi:.1f} | {med:.1f} |")
     print(f"\nspeed-up 2 vs 1 worker: {w1[0] / w2[0]:.2f}x "
           f"(without the fixed cost {(w1[0] - fixed) / (w2[0] - fixed):.2f}x); "
           f"engine overhead with 1 worker: {100 * (w1[0] - loop[0]) / loop[0]:+.1f} % "
           f"(without the fixed cost of {fixed:.1f} s: "
           f"{100 * (w1[0] - fixed - loop[0]) / loop[0]:+.1f} %)")
+    # the same figures per repetition (each from measurements taken one after the other)
+    over = []
+    for (lt, _), (wt, _), (ot, _) in zip(got[names[0]], got[names[1]], got[names[3]]):
+        f = ot - lt / n
+        over.append((100 * (wt - lt) / lt, 100 * (wt - f - lt) / lt))
+    print("engine overhead per repetition: " + ", ".join(f"{a:+.1f} % ({b:+.1f} %)"
+                                                        for a, b in over) +
+          f"; median {statistics.median(a for a, _ in over):+.1f} % "
+          f"({statistics.median(b for _, b in over):+.1f} % without the fixed cost)")
 
 
 if __name__ == "__main__":
