@@ -86,6 +86,25 @@ def test_min_rule_replaces_tiny_minimum():
     assert c.stats(6).global_min == pytest.approx(5.0)
 
 
+def test_longest_silence_per_robot():
+    """Hand-computed (times since GO at 100): robot 0 reports at 10 and 30 s, then at 140 s
+    (gap 110); robot 1 at 50 s (50 since GO), fails at 60 s and is repaired at 130 s: its
+    70 s down are not silence, its silence clock restarts at the repair."""
+    c = MonitorCore(3, 2)
+    assert c.silences(100.0) == []                 # before GO
+    c.start(100.0)
+    for robot, t in ((0, 110.0), (0, 130.0), (1, 150.0)):
+        c.visit(robot, 0, t)
+    c.robot_failed(1, 160.0)
+    assert c.silences(225.0) == pytest.approx([95.0, 50.0])   # robot 1 down: no silence
+    c.robot_repaired(1, 230.0)
+    c.visit(0, 1, 240.0)
+    assert c.silences(260.0) == pytest.approx([110.0, 50.0])
+    assert c.silences(300.0) == pytest.approx([110.0, 70.0])  # robot 1's open silence
+    c.visit(5, 2, 290.0)                           # an id outside the team: not listed
+    assert len(c.silences(300.0)) == 2
+
+
 def test_population_sd():
     assert population_sd(0, 0, 0) == 0.0
     xs = [1.0, 2.0, 4.0]

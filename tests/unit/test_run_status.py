@@ -247,3 +247,14 @@ def test_user_map_results_never_collide_with_a_shipped_map(tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert os.path.isdir(tmp_path / "r" / f"{validation.result_map_name(str(mine / 'grid.yaml'))}_2")
+
+
+def test_a_long_silence_is_named_when_the_run_did_not_fail():
+    from patrolling_sim.runner.outcome import silence_warning
+    # robot 1 silent 230 s of a 300 s dead-robot time: named; 150 s (half) is not; robot 2
+    # beyond 300 s is a FAIL, named by the status instead
+    line = silence_warning([40.0, 230.4, 150.0], 300.0)
+    assert "robot 1 230 s" in line and "robot 2" not in line and "robot 0" not in line
+    assert silence_warning([40.0, 150.0, 301.0], 300.0) is None
+    assert silence_warning([400.0], 0.0) is None              # no dead-robot rule
+    assert silence_warning([], 300.0) is None                  # before GO / no record

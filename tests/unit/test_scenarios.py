@@ -53,6 +53,12 @@ def test_failure_applied_at_its_time_robot_stops_and_run_is_not_fail(tmp_path):
     for r in (0, 1, 3):                             # the others keep patrolling to the end
         assert max(t for t, rr, _ in v if rr == r) > 1700.0
     assert {x for t, _, x in v if t > 600.0} == set(range(sim.g.n))
+    # each robot's longest silence in _run.yaml, from the visit log: robot 2's ends at its
+    # failure (its down time is not silence), the others' at the end of the run
+    for r in range(4):
+        times = [0.0] + [t for t, rr, _ in v if rr == r] + [600.0 if r == 2 else 1800.0]
+        gap = max(b - a for a, b in zip(times, times[1:]))
+        assert read_run_yaml(sim.prefix)["longest_silence"][r] == pytest.approx(gap, abs=0.06)
     body = sim.robots[2]
     assert body.pieces is None and body.core.failed           # stands where it stopped
     assert sim.team_pos[2] == body.xy

@@ -306,6 +306,7 @@ class GraphSimulator(FeedbackTicks):
                     "culprit": None, "robots": [], "signal": None,
                     "sim_time": round(self.t, 1),
                     "wall_time": round(time.monotonic() - self.wall0, 1),
+                    "longest_silence": [round(x, 1) for x in self.monitor.silences(self.t)],
                     "exit_code": run_status.exit_code_for(status), "written_by": "graph_sim"})
 
 

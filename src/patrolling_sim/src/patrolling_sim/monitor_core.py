@@ -109,6 +109,8 @@ class MonitorCore:
         self.cycles = 0
         #: robot id -> time since GO of its last visit report (the FAIL rule, docs/monitor.md "Run statuses")
         self.last_report: Dict[int, float] = {}
+        #: robot id -> its longest closed interval without a visit report (see silences())
+        self._longest_silence: Dict[int, float] = {}
         #: robots failed now (scenario failures, docs/scenarios.md): not a FAIL of the run
         self.dead_robots: Set[int] = set()
         #: every failure: [robot, t_fail, t_repair or None] (times since GO)
@@ -131,6 +133,7 @@ class MonitorCore:
         """GO: ``now`` becomes time zero."""
         self.time_zero = float(now)
         self.last_report = {r: 0.0 for r in range(self.team_size)}
+        self._longest_silence = {}
 
     def elapsed(self, now: float) -> float:
         return 0.0 if self.time_zero is None else float(now) - self.time_zero
@@ -142,6 +145,7 @@ class MonitorCore:
         if not self.started or not 0 <= vertex < self.n:
             return None
         t = self.elapsed(now)
+        self._end_silence(robot_id, t)
         self.last_report[robot_id] = t
         self.visits[vertex] += 1
         idl = None
@@ -173,6 +177,7 @@ class MonitorCore:
         vertex; the robot is exempt from the silence (FAIL) rule while it is down."""
         if not self.started or robot_id in self.dead_robots:
             return
+        self._end_silence(robot_id, self.elapsed(now))
         self.dead_robots.add(robot_id)
         self.failures.append([robot_id, self.elapsed(now), None])
 
@@ -194,6 +199,32 @@ class MonitorCore:
         t = self.elapsed(now)
         return sorted(r for r, last in self.last_report.items()
                       if r not in self.dead_robots and t - last > timeout)
+
+    def _end_silence(self, robot_id: int, t: float) -> None:
+        """A robot's silence ends at ``t`` (a visit report, or its failure: a failed robot's
+        down time is not silence)."""
+        if robot_id in self.dead_robots or robot_id not in self.last_report:
+            return
+        gap = t - self.last_report[robot_id]
+        if gap > self._longest_silence.get(robot_id, 0.0):
+            self._longest_silence[robot_id] = gap
+
+    def silences(self, now: float) -> List[float]:
+        """For each robot id (0 .. team_size - 1), the longest time since GO in which it sent
+        no visit report: between two reports, from GO to its first, or from its last to
+        ``now`` (a scheduled failure's down time excluded). [] before GO. Recorded in
+        ``_run.yaml`` (``longest_silence``, docs/monitor.md), so that a robot that stopped
+        for a while shows in a run that still ended normally."""
+        if not self.started:
+            return []
+        t = self.elapsed(now)
+        out = []
+        for r in range(self.team_size):
+            s = self._longest_silence.get(r, 0.0)
+            if r not in self.dead_robots:
+                s = max(s, t - self.last_report.get(r, 0.0))
+            out.append(s)
+        return out
 
     # -- metrics ------------------------------------------------------------------------
     def current_idleness(self, now: float) -> List[float]:

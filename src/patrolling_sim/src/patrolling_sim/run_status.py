@@ -9,6 +9,7 @@ Every run (ROS runner, monitor alone, graph mode) records its end in two places:
       reason: "the simulator (stage2d) died (exit -9)"
       culprit: {node: stage2d, exit_code: -9, robot: null, log_tail: [...]}
       robots: []                 # FAIL: the silent robots' ids
+      longest_silence: [41.2, 230.4]   # per robot id: longest sim s without a visit report
       signal: null               # INTERRUPTED: SIGINT / SIGTERM
       sim_time: 63.2             # sim seconds since GO reached
       wall_time: 41.0            # wall seconds of the whole run

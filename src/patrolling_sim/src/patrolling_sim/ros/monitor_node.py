@@ -347,6 +347,7 @@ class Monitor:
                 "culprit": None, "robots": list(self.failed_robots), "signal": None,
                 "sim_time": round(stats.elapsed, 1), "wall_time": None,
                 "real_time_since_go": round(self._real_elapsed(), 1), "exit_code": None,
+                "longest_silence": [round(x, 1) for x in self.core.silences(now)],
                 "written_by": "monitor"})
         except OSError as e:
             rospy.logerr("monitor: cannot write %s_run.yaml: %s", self.prefix, e)
