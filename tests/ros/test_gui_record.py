@@ -105,6 +105,7 @@ def test_gui_starts_and_stops_an_experiment(tmp_path, xvfb, monkeypatch):
         app.stop_btn.invoke()                          # Stop: orderly shutdown
         pump(lambda: app.proc is None, 120, "the run's end")
         assert app.status.get().startswith("finished"), app.status.get()
+        assert not os.path.exists(app.run_cfg), "the run's temporary configuration was left"
         assert str(app.start_btn["state"]) == "normal"
     finally:
         if getattr(app, "proc", None) is not None:

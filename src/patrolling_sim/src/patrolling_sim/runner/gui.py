@@ -57,6 +57,7 @@ class LauncherApp:
         self.root = root
         self.script = script
         self.proc = None
+        self.run_cfg = None       # the running experiment's temporary configuration file
         # the reader thread only fills this queue; Tk is touched from the main loop alone
         self.events = queue.Queue()
         root.title("MRP Experiment Launcher")
@@ -130,9 +131,12 @@ class LauncherApp:
         path = last_config_path()
         os.makedirs(os.path.dirname(path), exist_ok=True)
         cfg.save(path)
+        # the run's own configuration file; the runner copies it into the results
+        # (_config.yaml), and the reader removes it once the run has ended
         fd, run_cfg = tempfile.mkstemp(prefix="patrol_gui_", suffix=".yaml")
         os.close(fd)
         cfg.save(run_cfg)
+        self.run_cfg = run_cfg
         self.proc = subprocess.Popen([sys.executable, self.script, "--headless", "--config",
                                       run_cfg], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, text=True, bufsize=1,
@@ -140,13 +144,17 @@ class LauncherApp:
         self.status.set(f"running {cfg.map_name}, {cfg.robots} robots, {cfg.alg}")
         self.start_btn.configure(state="disabled")
         self.stop_btn.configure(state="normal")
-        threading.Thread(target=self._reader, args=(self.proc,), daemon=True).start()
+        threading.Thread(target=self._reader, args=(self.proc, run_cfg), daemon=True).start()
         self.root.after(POLL_MS, self._poll)
 
-    def _reader(self, proc):
+    def _reader(self, proc, run_cfg):
         for line in proc.stdout:
             self.events.put(("line", line.rstrip("\n")))
         proc.wait()
+        try:
+            os.unlink(run_cfg)
+        except OSError:
+            pass
         self.events.put(("exit", proc.returncode))
 
     def _poll(self):
