@@ -7,7 +7,6 @@
 """
 import glob
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -40,20 +39,6 @@ def test_recorded_run_is_a_playable_video(tmp_path):
     last = cv2.imread(snaps[-1])
     assert first.std() > 10                      # map, robot and graph drawn, not blank
     assert (first != last).any()                 # the robot moved between first and last
-
-
-@pytest.fixture
-def xvfb():
-    if shutil.which("Xvfb") is None:
-        pytest.skip("Xvfb not installed")
-    proc = subprocess.Popen(["Xvfb", "-displayfd", "1", "-screen", "0", "1024x768x24",
-                             "-nolisten", "tcp"], stdout=subprocess.PIPE, text=True)
-    display = ":" + proc.stdout.readline().strip()
-    try:
-        yield display
-    finally:
-        proc.terminate()
-        proc.wait(timeout=10)
 
 
 def test_gui_starts_and_stops_an_experiment(tmp_path, xvfb, monkeypatch):

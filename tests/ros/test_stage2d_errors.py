@@ -169,15 +169,14 @@ def test_gui_without_display(master):
     check_fails(run_node(env, map=GRID, poses=GOOD_POSES, gui="true"), "~gui", "DISPLAY")
 
 
-def test_gui_under_xvfb(master, tmp_path):
+def test_gui_under_xvfb(master, tmp_path, xvfb):
     """The viewer window opens on a virtual screen and the node keeps running."""
-    xvfb = "/usr/bin/xvfb-run"
-    assert os.access(xvfb, os.X_OK), "xvfb-run missing (package xvfb)"
     _counter[0] += 1
-    args = [xvfb, "-a", BINARY, f"__name:=stage2d_gui{_counter[0]}", f"_map:={GRID}",
-            f"_poses:={GOOD_POSES}", f"_graph_vertices:={GRAPH_XY}", f"_graph_edges:={GRAPH_EDGES}", "_gui:=true", "_speedup:=2.0"]
-    proc = subprocess.Popen(args, env=master, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, start_new_session=True)
+    args = [BINARY, f"__name:=stage2d_gui{_counter[0]}", f"_map:={GRID}",
+            f"_poses:={GOOD_POSES}", f"_graph_vertices:={GRAPH_XY}",
+            f"_graph_edges:={GRAPH_EDGES}", "_gui:=true", "_speedup:=2.0"]
+    proc = subprocess.Popen(args, env=dict(master, DISPLAY=xvfb), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         time.sleep(3.0)
         assert proc.poll() is None, f"exited {proc.returncode}: {proc.stdout.read()}"
