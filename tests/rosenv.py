@@ -56,7 +56,7 @@ def stop_rostest(proc):
     """Stop a running rostest as Ctrl-C in its terminal would: SIGINT, so that it shuts its
     launch down (roslaunch starts every node in a session of its own, which a signal to
     rostest's group does not reach, and which would outlive a killed rostest), then SIGKILL
-    if it is still running after ``STOP_GRACE`` s. Returns (stdout, stderr) read so far."""
+    if it is still running after ``STOP_GRACE`` s. Returns its whole (stdout, stderr)."""
     try:
         proc.send_signal(signal.SIGINT)
     except OSError:
@@ -80,6 +80,9 @@ def run_rostest(pkg, path, ros_home, timeout=600, args=()):
                           text=True, cwd=ROOT, start_new_session=True) as proc:
         try:
             out, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired as e:    # its output goes with it, as run()'s does
+            e.stdout, e.stderr = stop_rostest(proc)
+            raise
         except BaseException:
             stop_rostest(proc)
             raise
