@@ -218,6 +218,29 @@ def test_scenario_runs_get_scenario_columns_and_metrics():
     assert not [k for k in plain if k.startswith("scn_")]
 
 
+def test_row_has_the_longest_silence_of_the_visit_log():
+    """runs.csv's longest_silence / longest_silence_robot: the longest time a robot sent no
+    visit report (from GO to its first, between two, from its last to the end), recomputed
+    here from the run's own visit log."""
+    from patrolling_sim.campaign_tasks import run_graph_task
+    res = run_graph_task(dict(map="grid", robots=3, alg="RAND", duration=400.0, seed=4))
+    log = res["files"][res["prefix"] + "_visits.csv"].split()
+    times = {}
+    for line in log[1:]:                                  # Time;Robot;Node
+        t, rid, _ = line.split(";")
+        times.setdefault(int(rid), []).append(float(t))
+    gaps = {}
+    for rid, ts in times.items():
+        edges = [0.0] + sorted(ts) + [400.0]
+        gaps[rid] = max(b - a for a, b in zip(edges, edges[1:]))
+    m = res["metrics"]
+    worst = max(gaps.values())
+    assert m["longest_silence"] == pytest.approx(worst, abs=0.06)           # rounded to 0.1
+    # ties (a regular grid gives some) go to the lowest id
+    assert m["longest_silence_robot"] == min(r for r, g in gaps.items() if g > worst - 0.06)
+    assert 0 < m["longest_silence"] < 400
+
+
 def test_runs_with_one_time_stamp_keep_their_files_apart(tmp_path):
     """Runs stored within one second share a prefix: each gets its own suffix, across calls
     (a resumed campaign starts with an empty suffix memory and must not overwrite files)."""

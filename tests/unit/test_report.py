@@ -410,3 +410,32 @@ def test_without_run_plots_the_tables_are_the_same(synthetic, tmp_path):
         assert open(os.path.join(slim, name)).read() == open(os.path.join(out, name)).read()
     assert not os.path.isdir(os.path.join(slim, "runs")) or not os.listdir(
         os.path.join(slim, "runs"))
+
+
+def test_longest_silence_column_and_warning(tmp_path):
+    """A run record's longest_silence: the per-run table has the longest and its robot; a run
+    whose robot was silent for more than half its dead_robot_timeout (_config.yaml) but not
+    for all of it gets one warning naming it; a run without a record shows n/a."""
+    root = str(tmp_path / "r")
+    rng = random.Random(3)
+    quiet = write_run(root, "grid", 3, "CR", "h", "20260101_000001", rng, 25, 30.0)
+    frozen = write_run(root, "grid", 3, "CR", "h", "20260101_000002", rng, 25, 30.0)
+    old = write_run(root, "grid", 3, "CR", "h", "20260101_000003", rng, 25, 30.0)
+    for prefix, silences in ((quiet, [20.0, 31.5, 12.0]), (frozen, [20.0, 180.4, 30.0])):
+        with open(prefix + "_run.yaml", "w") as f:
+            f.write("status: TIMEOUT\nlongest_silence: [%s]\n" % ", ".join(map(str, silences)))
+        with open(prefix + "_config.yaml", "w") as f:
+            f.write("dead_robot_timeout: 300\n")
+    out = str(tmp_path / "o")
+    proc = run_report([root, "--out", out])
+    assert proc.returncode == 0, proc.stderr
+    runs = {r["prefix"]: r for r in read_csv(os.path.join(out, "runs.csv"))}
+    assert float(runs[quiet]["longest_silence"]) == 31.5
+    assert runs[quiet]["longest_silence_robot"] == "1"
+    assert float(runs[frozen]["longest_silence"]) == 180.4
+    assert runs[old]["longest_silence"] == "" and runs[old]["longest_silence_robot"] == "-1"
+    warn = [l for l in proc.stderr.splitlines() if "without a visit report" in l]
+    assert len(warn) == 1 and frozen in warn[0] and "robot 1 180 s" in warn[0], proc.stderr
+    with open(os.path.join(out, "report.html"), encoding="utf-8") as f:
+        page = f.read()
+    assert "180.4 (robot 1)" in page and "longest silence (s)" in page

@@ -250,7 +250,7 @@ def test_user_map_results_never_collide_with_a_shipped_map(tmp_path):
 
 
 def test_a_long_silence_is_named_when_the_run_did_not_fail():
-    from patrolling_sim.runner.outcome import silence_warning
+    from patrolling_sim.run_status import silence_warning
     # robot 1 silent 230 s of a 300 s dead-robot time: named; 150 s (half) is not; robot 2
     # beyond 300 s is a FAIL, named by the status instead
     line = silence_warning([40.0, 230.4, 150.0], 300.0)

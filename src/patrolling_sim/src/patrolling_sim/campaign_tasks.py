@@ -128,6 +128,18 @@ def _summary_from_info(text):
                       "total_visits", "complete_cycles", "sim_duration", "interference_rate")}
 
 
+def _longest_silence(run_yaml):
+    """(seconds, robot) of a ``_run.yaml`` text's longest silence, (None, None) without one."""
+    from .run_status import longest_silence_of
+    if not run_yaml:
+        return None, None
+    try:
+        rec = yaml.load(run_yaml, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    except yaml.YAMLError:
+        return None, None
+    return longest_silence_of(rec if isinstance(rec, dict) else None)
+
+
 def run_metrics(files: Dict[str, str], prefix: str, map_name: str, visits_path: str) -> dict:
     """The run's row of metrics (the original's from info.csv, the extra ones of
     :mod:`patrolling_sim.metrics` from the visit log at ``visits_path``); adds
@@ -137,6 +149,9 @@ def run_metrics(files: Dict[str, str], prefix: str, map_name: str, visits_path: 
     from .campaign_spec import _Dumper
     from .metrics import compute_metrics, metrics_to_yaml_dict, read_visits
     row = _summary_from_info(files.get(prefix + "_info.csv", ""))
+    # the longest time a robot sent no visit report (_run.yaml, docs/monitor.md) and which
+    row["longest_silence"], row["longest_silence_robot"] = _longest_silence(
+        files.get(prefix + "_run.yaml"))
     if os.path.isfile(visits_path) and row.get("sim_duration"):
         m = compute_metrics(read_visits(visits_path), paths.vertex_count(map_name),
                             row["sim_duration"])

@@ -134,3 +134,33 @@ def log_tail(path_pattern, lines=10):
             continue
         out += [ln for ln in tail if ln.strip()]
     return out[-lines:]
+
+
+def silence_warning(silences, dead_robot_timeout):
+    """A line naming the robots that sent no visit report for more than half the dead-robot
+    time (``silences``: each robot's longest silence, ``_run.yaml``'s ``longest_silence``)
+    without reaching it, or None: such a run may still end normally (TIMEOUT), with a robot
+    that stood still for minutes; 0 (no dead-robot rule) gives no warning."""
+    if not dead_robot_timeout or dead_robot_timeout <= 0:
+        return None
+    long = [(r, s) for r, s in enumerate(silences or [])
+            if dead_robot_timeout / 2 < s <= dead_robot_timeout]
+    if not long:
+        return None
+    who = ", ".join(f"robot {r} {s:.0f} s" for r, s in long)
+    return (f"longest time without a visit report: {who} (more than half the dead-robot "
+            f"time of {dead_robot_timeout:g} sim s; see longest_silence in _run.yaml)")
+
+
+def longest_silence_of(record):
+    """(seconds, robot id) of the longest ``longest_silence`` entry of a ``_run.yaml`` record
+    (dict), the lowest id of equal ones; (None, None) if the record has none (older runs)."""
+    sil = (record or {}).get("longest_silence") or []
+    try:
+        sil = [float(x) for x in sil]
+    except (TypeError, ValueError):
+        return None, None
+    if not sil:
+        return None, None
+    r = max(range(len(sil)), key=sil.__getitem__)
+    return sil[r], r

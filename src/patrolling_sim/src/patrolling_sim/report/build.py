@@ -109,6 +109,11 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
             "argument RESULTS_DIR: no complete run to report ("
             + ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
             + "; only TIMEOUT/CYCLES/STOPPED runs are used, FAIL with --include-fail)")
+    from ..run_status import silence_warning
+    for r in runs:              # a robot that stood still for minutes in a complete run
+        line = silence_warning(r.silences, r.dead_robot_timeout)
+        if line:
+            warnings.append(f"{r.prefix}: {line}")
     inferred = [r for r in runs if r.status_note.startswith("no _run.yaml")]
     if inferred:
         warnings.append(f"{len(inferred)} run(s) without _run.yaml (older results): their "
@@ -297,7 +302,7 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
 
     rheader = ["run", "algorithm", "N", "samples", "avg idleness (s)", "info.csv idl_avg",
                "max idleness (s)", "cycles", "interf. rate (1/min)", "sim time (s)",
-               "status"]
+               "longest silence (s)", "status"]
     rrows = []
     for _, r in per_run.iterrows():
         rrows.append([r["run_id"], r["algorithm"], str(r["N"]), str(r["samples"]),
@@ -306,8 +311,11 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
                       + ("" if r["idl_avg_agrees"] else " (≠)"),
                       "n/a" if H.is_nan(r["max_idleness"]) else f"{r['max_idleness']:.1f}",
                       str(r["complete_cycles"]), f"{r['interference_rate']:.2f}",
-                      f"{r['sim_duration']:.1f}", r["status"]])
-    sections.append(("Runs", H.table(rheader, rrows, text_cols=(0, 1, 10))))
+                      f"{r['sim_duration']:.1f}",
+                      "n/a" if H.is_nan(r["longest_silence"]) else
+                      f"{r['longest_silence']:.1f} (robot {r['longest_silence_robot']})",
+                      r["status"]])
+    sections.append(("Runs", H.table(rheader, rrows, text_cols=(0, 1, 10, 11))))
     from .scenarios import scenario_section     # runs with failures / a comm model
     scen = scenario_section(runs, out_dir)
     if scen is not None:

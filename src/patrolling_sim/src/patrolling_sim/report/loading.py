@@ -58,6 +58,12 @@ class Run:
     #: (time-averaged graph idleness, worst idleness) from the visit log (docs/metrics.md),
     #: computed once at load; NaN without a log or a readable graph
     extended: tuple = (math.nan, math.nan)
+    #: ``_run.yaml``'s ``longest_silence``: per robot id, the longest sim s without a visit
+    #: report (docs/monitor.md); [] for runs written before it existed
+    silences: list = field(default_factory=list)
+    #: the run's ``dead_robot_timeout`` (sim s) from ``_config.yaml`` (runner runs); None if
+    #: unknown (graph mode has no dead-robot rule)
+    dead_robot_timeout: float = None
 
     @property
     def label(self):
@@ -240,11 +246,23 @@ def find_runs(dirs):
     return sorted(prefixes.values()), warnings
 
 
-def run_status_of(prefix, info):
-    """(status, note) of a run: from ``<prefix>_run.yaml``, else inferred (see the module
-    docstring)."""
+def _config_number(prefix, key):
+    """The number ``key`` of ``<prefix>_config.yaml`` (written by the runner), or None if
+    there is no such file or value."""
+    import yaml
+    try:
+        with open(prefix + "_config.yaml", encoding="utf-8") as f:
+            return float((yaml.safe_load(f) or {})[key])
+    except (OSError, KeyError, TypeError, ValueError, AttributeError, yaml.YAMLError):
+        return None
+
+
+def run_status_of(prefix, info, rec=False):
+    """(status, note) of a run: from ``<prefix>_run.yaml`` (``rec``: its record when already
+    read, None if it has none), else inferred (see the module docstring)."""
     from .. import run_status as rs
-    rec = rs.read_run_yaml(prefix)
+    if rec is False:
+        rec = rs.read_run_yaml(prefix)
     if rec and rec.get("status"):
         status = rs.normalise(rec["status"])
         note = str(rec.get("reason") or "")
@@ -289,8 +307,15 @@ def load_run(prefix, slim=False):
     if slim:
         samples = pd.DataFrame({"Node": samples["Node"].astype(np.int32),
                                 "Idleness": samples["Idleness"]})
-    status, note = run_status_of(prefix, info)
+    from ..run_status import read_run_yaml
+    rec = read_run_yaml(prefix)
+    status, note = run_status_of(prefix, info, rec)
     run = Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note)
+    try:
+        run.silences = [float(x) for x in (rec or {}).get("longest_silence") or []]
+    except (TypeError, ValueError):
+        run.silences = []
+    run.dead_robot_timeout = _config_number(prefix, "dead_robot_timeout")
     run.extended = _stored_extended(prefix)
     scenario = os.path.isfile(prefix + "_scenario.yaml")
     if run.extended is None or scenario:

@@ -51,6 +51,7 @@ def run_table(runs):
         i = r.info
         avg = float(idl.mean()) if idl.size else np.nan
         t_avg, worst = extended_metrics(r)
+        silent_s = max(r.silences) if r.silences else np.nan
         rows.append({
             "run_id": r.run_id,
             "prefix": r.prefix,
@@ -78,6 +79,9 @@ def run_table(runs):
             "termination": i["termination"],
             "status": r.status or i["termination"],
             "status_note": r.status_note,
+            # the longest sim s any robot went without a visit report, and which robot
+            "longest_silence": silent_s,
+            "longest_silence_robot": r.silences.index(silent_s) if r.silences else -1,
             "info_idl_avg": i["idl_avg"],
             "idl_avg_agrees": bool(idl.size and abs(avg - i["idl_avg"]) <= AGREE_TOL)
             if not np.isnan(i["idl_avg"]) else not idl.size,

@@ -138,19 +138,3 @@ def summary(status, record, dead_robot_timeout):
         why = f"FAIL: robot(s) {', '.join(map(str, record['robots']))} sent no visit for " \
               f"{dead_robot_timeout:g} sim s"
     return why
-
-
-def silence_warning(silences, dead_robot_timeout):
-    """A line naming the robots that sent no visit report for more than half the dead-robot
-    time (``silences``: each robot's longest silence, ``_run.yaml``'s ``longest_silence``)
-    without reaching it, or None: such a run may still end normally (TIMEOUT), with a robot
-    that stood still for minutes; 0 (no dead-robot rule) gives no warning."""
-    if not dead_robot_timeout or dead_robot_timeout <= 0:
-        return None
-    long = [(r, s) for r, s in enumerate(silences or [])
-            if dead_robot_timeout / 2 < s <= dead_robot_timeout]
-    if not long:
-        return None
-    who = ", ".join(f"robot {r} {s:.0f} s" for r, s in long)
-    return (f"longest time without a visit report: {who} (more than half the dead-robot "
-            f"time of {dead_robot_timeout:g} sim s; see longest_silence in _run.yaml)")

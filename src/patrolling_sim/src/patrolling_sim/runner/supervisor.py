@@ -39,7 +39,7 @@ from ..results import claim_prefix as _claim, default_prefix
 from ..run_status import NORMAL_ENDS  # noqa: F401 - re-exported (GUI, tests)
 from .launchgen import generate_launch, status_topic
 from .outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,  # noqa: F401
-                      missing_files, read_info, signal_name, silence_warning, summary, timing)
+                      missing_files, read_info, signal_name, summary, timing)
 from .proctree import ProcessTree
 from .roslaunch_log import RoslaunchLog, describe_node, is_monitor  # noqa: F401 - re-exported
 from .rosenv import experiment_env, free_port
@@ -313,7 +313,7 @@ class Experiment:
         monitor_record = rs.read_run_yaml(self.prefix) or {}
         record = decide_status(stop, run.crash, run.abort_reason, info, monitor_record)
         record["longest_silence"] = monitor_record.get("longest_silence") or []
-        warning = silence_warning(record["longest_silence"], cfg.dead_robot_timeout)
+        warning = rs.silence_warning(record["longest_silence"], cfg.dead_robot_timeout)
         if warning:
             self.out(f"warning: {warning}")
         status = record["status"]
