@@ -105,6 +105,23 @@ def test_longest_silence_per_robot():
     assert len(c.silences(300.0)) == 2
 
 
+def test_a_report_from_outside_the_team_counts_but_cannot_fail_the_run():
+    """Robot 7 in a team of 2 reports once and goes quiet: its visit is an idleness sample
+    (the original counts it), but the silence rule watches robots 0 and 1 only, so after
+    the dead-robot time only a silent team member is listed."""
+    c = MonitorCore(3, 2)
+    c.start(0.0)
+    c.visit(0, 0, 10.0)
+    r = c.visit(7, 0, 20.0)
+    assert r is not None and r.idleness == pytest.approx(10.0)
+    assert c.n_samples == 1 and c.foreign_reports == 1
+    c.visit(0, 1, 290.0)
+    c.visit(1, 2, 295.0)
+    assert c.silent_robots(400.0, 300.0) == []      # robot 7 silent for 380 s: not a FAIL
+    assert c.silent_robots(600.0, 300.0) == [0, 1]
+    assert len(c.silences(600.0)) == 2
+
+
 def test_population_sd():
     assert population_sd(0, 0, 0) == 0.0
     xs = [1.0, 2.0, 4.0]

@@ -111,6 +111,8 @@ class MonitorCore:
         self.last_report: Dict[int, float] = {}
         #: robot id -> its longest closed interval without a visit report (see silences())
         self._longest_silence: Dict[int, float] = {}
+        #: visit reports from robot ids outside the team (see visit())
+        self.foreign_reports = 0
         #: robots failed now (scenario failures, docs/scenarios.md): not a FAIL of the run
         self.dead_robots: Set[int] = set()
         #: every failure: [robot, t_fail, t_repair or None] (times since GO)
@@ -141,12 +143,19 @@ class MonitorCore:
     # -- events -------------------------------------------------------------------------
     def visit(self, robot_id: int, vertex: int, now: float) -> Optional[VisitResult]:
         """Record ``[id,11,v]`` at absolute time ``now``. Ignored (None) before GO or for a
-        vertex id outside the graph."""
+        vertex id outside the graph. A report from a robot id outside the team counts in the
+        idleness, as the original's monitor counts it, but not in the silence (FAIL) rule,
+        which, as the original's, watches the team's ids only: such a sender that then went
+        quiet must not end the run as a FAIL of a robot the run does not have
+        (``foreign_reports`` counts these reports)."""
         if not self.started or not 0 <= vertex < self.n:
             return None
         t = self.elapsed(now)
-        self._end_silence(robot_id, t)
-        self.last_report[robot_id] = t
+        if 0 <= robot_id < self.team_size:
+            self._end_silence(robot_id, t)
+            self.last_report[robot_id] = t
+        else:
+            self.foreign_reports += 1
         self.visits[vertex] += 1
         idl = None
         if self.visits[vertex] > 0:

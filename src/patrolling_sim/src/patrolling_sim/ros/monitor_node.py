@@ -212,6 +212,10 @@ class Monitor:
         if r is None:
             rospy.logwarn("monitor: robot %d reported vertex %d outside the graph", rid, v)
             return
+        if self.core.foreign_reports == 1 and not 0 <= rid < self.n_robots:
+            rospy.logwarn("monitor: visit reports from robot %d, outside the team of %d: "
+                          "counted in the idleness, not in the dead-robot rule", rid,
+                          self.n_robots)
         self.writer.visit_row(r.t, rid, v)
         if r.idleness is not None:
             self.writer.idleness_row(now, rid, v, r.idleness, self.core.interferences)
