@@ -61,9 +61,13 @@ def _cases():
 def ros_runs(tmp_path_factory):
     """alg -> [AbstractRun] for every algorithm of ALGS, all made on first use."""
     jobs = [(alg, seed) for alg in ALGS for seed in range(RUNS.get(alg, 1))]
+    # the folders are made here, not in the pool's threads: pytest creates its base temporary
+    # folder on the first mktemp without a lock, and two threads racing there made two base
+    # folders and failed the module's setup ("abstract_CR_1 is not a normalized and relative
+    # path", seen once in a full suite)
+    dirs = [tmp_path_factory.mktemp(f"abstract_{alg}_{seed}") for alg, seed in jobs]
     with ThreadPoolExecutor(PARALLEL) as pool:
-        done = list(pool.map(lambda job: run_abstract(
-            job[0], job[1], tmp_path_factory.mktemp(f"abstract_{job[0]}_{job[1]}")), jobs))
+        done = list(pool.map(lambda job, d: run_abstract(job[0], job[1], d), jobs, dirs))
     out = {}
     for (alg, _), run in zip(jobs, done):
         out.setdefault(alg, []).append(run)
