@@ -130,14 +130,14 @@ def _summary_from_info(text):
 
 def _longest_silence(run_yaml):
     """(seconds, robot) of a ``_run.yaml`` text's longest silence, (None, None) without one."""
-    from .run_status import longest_silence_of
+    from .run_status import longest_silence, silences_of
     if not run_yaml:
         return None, None
     try:
         rec = yaml.load(run_yaml, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except yaml.YAMLError:
         return None, None
-    return longest_silence_of(rec if isinstance(rec, dict) else None)
+    return longest_silence(silences_of(rec if isinstance(rec, dict) else None))
 
 
 def run_metrics(files: Dict[str, str], prefix: str, map_name: str, visits_path: str) -> dict:

@@ -152,15 +152,19 @@ def silence_warning(silences, dead_robot_timeout):
             f"time of {dead_robot_timeout:g} sim s; see longest_silence in _run.yaml)")
 
 
-def longest_silence_of(record):
-    """(seconds, robot id) of the longest ``longest_silence`` entry of a ``_run.yaml`` record
-    (dict), the lowest id of equal ones; (None, None) if the record has none (older runs)."""
-    sil = (record or {}).get("longest_silence") or []
+def silences_of(record):
+    """``longest_silence`` of a ``_run.yaml`` record (dict or None) as floats, one per robot
+    id; [] if the record has none (older runs) or it is malformed."""
     try:
-        sil = [float(x) for x in sil]
-    except (TypeError, ValueError):
+        return [float(x) for x in (record or {}).get("longest_silence") or []]
+    except (TypeError, ValueError, AttributeError):
+        return []
+
+
+def longest_silence(silences):
+    """(seconds, robot id) of the longest of ``silences`` (:func:`silences_of`), the lowest id
+    of equal ones; (None, None) for an empty list."""
+    if not silences:
         return None, None
-    if not sil:
-        return None, None
-    r = max(range(len(sil)), key=sil.__getitem__)
-    return sil[r], r
+    r = max(range(len(silences)), key=silences.__getitem__)
+    return silences[r], r

@@ -307,14 +307,11 @@ def load_run(prefix, slim=False):
     if slim:
         samples = pd.DataFrame({"Node": samples["Node"].astype(np.int32),
                                 "Idleness": samples["Idleness"]})
-    from ..run_status import read_run_yaml
+    from ..run_status import read_run_yaml, silences_of
     rec = read_run_yaml(prefix)
     status, note = run_status_of(prefix, info, rec)
     run = Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note)
-    try:
-        run.silences = [float(x) for x in (rec or {}).get("longest_silence") or []]
-    except (TypeError, ValueError):
-        run.silences = []
+    run.silences = silences_of(rec)
     run.dead_robot_timeout = _config_number(prefix, "dead_robot_timeout")
     run.extended = _stored_extended(prefix)
     scenario = os.path.isfile(prefix + "_scenario.yaml")

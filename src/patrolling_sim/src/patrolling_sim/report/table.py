@@ -19,6 +19,8 @@ delay), so runs made under different settings are never averaged together.
 import numpy as np
 import pandas as pd
 
+from ..run_status import longest_silence
+
 KEY = ("map", "N", "algorithm")
 #: settings that split groups when they differ between loaded runs
 SETTINGS = ("nav_module", "initial_positions", "goal_wait", "comm_delay")
@@ -51,7 +53,7 @@ def run_table(runs):
         i = r.info
         avg = float(idl.mean()) if idl.size else np.nan
         t_avg, worst = extended_metrics(r)
-        silent_s = max(r.silences) if r.silences else np.nan
+        silent_s, silent_robot = longest_silence(r.silences)
         rows.append({
             "run_id": r.run_id,
             "prefix": r.prefix,
@@ -80,8 +82,8 @@ def run_table(runs):
             "status": r.status or i["termination"],
             "status_note": r.status_note,
             # the longest sim s any robot went without a visit report, and which robot
-            "longest_silence": silent_s,
-            "longest_silence_robot": r.silences.index(silent_s) if r.silences else -1,
+            "longest_silence": np.nan if silent_s is None else silent_s,
+            "longest_silence_robot": -1 if silent_robot is None else silent_robot,
             "info_idl_avg": i["idl_avg"],
             "idl_avg_agrees": bool(idl.size and abs(avg - i["idl_avg"]) <= AGREE_TOL)
             if not np.isnan(i["idl_avg"]) else not idl.size,
