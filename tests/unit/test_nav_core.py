@@ -426,3 +426,41 @@ def test_planner_windowed_search_with_obstacles_is_exact(name):
             checked += 1
         p.clear_obstacles()
     assert checked >= 12 and p.window_searches >= 5, (checked, p.window_searches)
+
+
+@pytest.mark.parametrize("name", ["grid", "cumberland"])
+def test_planner_goal_taken_by_a_robot_is_exact_and_keeps_the_cache(name):
+    """A robot standing on the goal vertex moves the goal to the nearest open cell: the plan
+    there must cost what a whole-map Dijkstra with the same obstacles gives, and the moved
+    cell (a new one for every robot standing nearby) must not cost a whole-map search nor
+    enter the navigation-function cache; the vertex's own obstacle-free function does."""
+    from scipy.sparse.csgraph import dijkstra
+    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
+    p = GlobalPlanner(m, obstacle_margin=0.2)
+    rng = np.random.default_rng(11)
+    free = np.argwhere(~p.lethal)
+    checked = 0
+    for _ in range(80):
+        (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
+        start, goal = p.cell_center(ai, aj), p.cell_center(bi, bj)
+        # a robot on the goal, slightly off its centre
+        p.set_obstacles(np.array(goal) + rng.normal(0.0, 0.1, (1, 2)))
+        si, sj = p.cell(*start)
+        if p.blocked_mask()[sj, si]:
+            continue
+        p._cache._d.clear()
+        before = p.searches
+        try:
+            path = p.plan(start, goal)
+        except PlanningError:
+            continue
+        g = p._field[0]
+        assert g != bj * p.w + bi                       # the goal was moved off its cell
+        assert math.hypot(path[-1][0] - goal[0], path[-1][1] - goal[1]) <= 0.4 + p.res
+        ref = dijkstra(p._csgraph(), directed=True, indices=g)[sj * p.w + si]
+        assert p.path_cost(start) == pytest.approx(ref, rel=1e-5), (start, goal)
+        assert list(p._cache._d) == [bj * p.w + bi]      # only the vertex's own function
+        assert not p._field[3]                          # searched with the obstacles
+        assert p.searches - before >= 2                 # vertex function + window search(es)
+        checked += 1
+    assert checked >= 12, checked

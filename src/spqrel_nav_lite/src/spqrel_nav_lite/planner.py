@@ -17,7 +17,9 @@ a window around start and goal, grown until it is provably exact: a path that le
 passes a cell ``b`` just outside it and costs at least ``|start - b| + d_free(b)`` (edge costs
 are at least their length, and obstacles only remove edges), so a window path no dearer than
 the smallest such bound is optimal on the whole map. The window grows (doubling its margin)
-until that holds or it covers the map.
+until that holds or it covers the map. A goal moved off its own cell because a robot stands
+there is searched this way at once, bounded by the (cached) function of the goal's own cell,
+never by a whole-map search of its own (see ``_free_bound``).
 """
 import math
 
@@ -58,6 +60,7 @@ class GlobalPlanner:
         self._graph = None
         self._obstacles = np.zeros((self.h, self.w), dtype=bool)
         self._field = None      # (goal_index, dist, pred, computed without obstacles, window)
+        self._taken_goal = None  # the goal's own cell when an obstacle moved the goal off it
         self.window_searches = 0        # searches with obstacles that stayed in a window
         self.searches = 0               # Dijkstra runs of this planner (statistics)
 
@@ -178,8 +181,17 @@ class GlobalPlanner:
             si, sj = c
         g = gj * self.w + gi
         s = sj * self.w + si
+        gi0, gj0 = self.cell(goal[0], goal[1])
+        # the goal's own cell, when a temporary obstacle (a robot standing on the vertex) moved
+        # the goal off it: see _free_bound
+        self._taken_goal = gj0 * self.w + gi0 if g != gj0 * self.w + gi0 and \
+            self.in_grid(gi0, gj0) and not self.lethal[gj0, gi0] else None
         if self._field is None or self._field[0] != g:
-            self._field = (g,) + self._navigation_function(g, free=True)
+            if self._taken_goal is None:
+                self._field = (g,) + self._navigation_function(g, free=True)
+            else:
+                # the goal moved because of the obstacles: search with them straight away
+                self._field = (g,) + self._obstacle_field(s, g)
         cells = self._walk(s, g)
         if cells is None and not self._field[3] and self._field[4] is not None:
             # a window field from an earlier position that the robot has left: search again
@@ -230,7 +242,7 @@ class GlobalPlanner:
         whole map (see the module notes); ``window`` is (i0, j0, i1, j1) or None for the whole
         grid. ``free_dist``: the obstacle-free field of ``g`` (the lower bound outside)."""
         if free_dist is None:
-            free_dist = self._navigation_function(g, free=True)[0]
+            free_dist = self._free_bound(g)
         w, h = self.w, self.h
         si, sj, gi, gj = s % w, s // w, g % w, g // w
         margin = max(int(math.ceil(WINDOW_MARGIN / self.res)),
@@ -256,6 +268,22 @@ class GlobalPlanner:
         lp = pred[ok]
         full_p[rows.ravel()[ok]] = (lp // ww + j0) * w + lp % ww + i0
         return full_d, full_p, False, (i0, j0, i1, j1)
+
+    def _free_bound(self, g):
+        """Lower bound, per cell, on the obstacle-free cost to goal cell ``g``: exact (the
+        obstacle-free navigation function of ``g``) unless ``g`` is a goal moved off its own
+        cell ``g0`` by a temporary obstacle. Then it is ``d0 - d0[g]`` with ``d0`` the cached
+        obstacle-free function of ``g0`` (the triangle inequality on the symmetric cell graph:
+        d(x, g0) <= d(x, g) + d(g, g0)). The cells a goal is moved to change with every robot
+        standing near it, so searching each of them on the whole map missed the cache (32
+        robots on cumberland: 4 of 5 whole-map searches, 80 ms each; docs/benchmarks/runner.md)
+        while the vertices themselves stay cached."""
+        g0 = self._taken_goal
+        if g0 is not None and g0 != g:
+            d0 = self._navigation_function(g0, free=True)[0]
+            if np.isfinite(d0[g]):
+                return np.maximum(d0 - d0[g], 0.0)
+        return self._navigation_function(g, free=True)[0]
 
     def _window_search(self, g, i0, j0, i1, j1):
         """Dijkstra from ``g`` over the cells of [i0, i1) x [j0, j1) without temporary
