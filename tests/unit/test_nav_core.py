@@ -464,3 +464,30 @@ def test_planner_goal_taken_by_a_robot_is_exact_and_keeps_the_cache(name):
         assert p.searches - before >= 2                 # vertex function + window search(es)
         checked += 1
     assert checked >= 12, checked
+
+
+def test_window_graph_is_the_cut_of_the_free_graph():
+    """The window's graph holds exactly the obstacle-free graph's edges between window cells
+    that are not blocked, with the same weights (placeholders are infinite self-loops)."""
+    from spqrel_nav_lite.planner_grid import PlannerGrid, window_graph
+    m = load_map(os.path.join(ROOT, "maps", "cumberland", "cumberland.yaml"))
+    grid = PlannerGrid(m)
+    rng = np.random.default_rng(5)
+    for _ in range(12):
+        i0, j0 = rng.integers(0, grid.w - 30), rng.integers(0, grid.h - 30)
+        i1, j1 = i0 + rng.integers(1, 30), j0 + rng.integers(1, 30)
+        if rng.random() < 0.3:              # windows on the grid's border
+            i0, i1, j0, j1 = 0, i1 - i0, grid.h - (j1 - j0), grid.h
+        blocked = rng.random((grid.h, grid.w)) < 0.05
+        g = window_graph(grid, blocked, i0, j0, i1, j1)
+        rows = np.arange(g.shape[0]).repeat(np.diff(g.indptr))
+        fin = np.isfinite(g.data)
+        assert np.all(g.indices[~fin] == rows[~fin]) and np.all(g.data[fin] > 0)
+        cells = (np.arange(j0, j1)[:, None] * grid.w + np.arange(i0, i1)[None, :]).ravel()
+        ref = grid.free_graph[cells][:, cells].toarray()
+        keep = ~blocked.ravel()[cells]
+        ref[~keep, :] = 0
+        ref[:, ~keep] = 0
+        got = np.zeros_like(ref)
+        got[rows[fin], g.indices[fin]] = g.data[fin]
+        assert np.array_equal(got, ref)

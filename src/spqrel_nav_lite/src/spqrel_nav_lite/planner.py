@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from .planner_grid import PlannerGrid, symmetric_csr
+from .planner_grid import PlannerGrid, window_graph
 
 
 WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
@@ -54,8 +54,6 @@ class GlobalPlanner:
         self.obstacle_margin = float(obstacle_margin)
         self.h, self.w = grid.h, grid.w
         self.clear, self.lethal, self.cost = grid.clear, grid.lethal, grid.cost
-        self._src, self._dst, self._wt = grid.src, grid.dst, grid.wt
-        self._row_start = grid.row_start
         self._free_graph, self._rows = grid.free_graph, grid.graph_rows
         self._graph = None
         self._obstacles = np.zeros((self.h, self.w), dtype=bool)
@@ -289,21 +287,10 @@ class GlobalPlanner:
         """Dijkstra from ``g`` over the cells of [i0, i1) x [j0, j1) without temporary
         obstacles; (dist, pred) indexed by window cell (row-major), pred -9999 at roots."""
         from scipy.sparse.csgraph import dijkstra
-        w, ww, wh = self.w, i1 - i0, j1 - j0
-        a, b = self._row_start[j0], self._row_start[j1]
-        src, dst, wt = self._src[a:b], self._dst[a:b], self._wt[a:b]
-        si, di, dj = src % w, dst % w, dst // w
-        flat = self._obstacles.ravel()
-        keep = (si >= i0) & (si < i1) & (di >= i0) & (di < i1) & (dj >= j0) & (dj < j1) & \
-            ~flat[src] & ~flat[dst]
-        ls = (src[keep] // w - j0) * ww + si[keep] - i0
-        ld = (dj[keep] - j0) * ww + di[keep] - i0
-        lw = wt[keep]
-        n = ww * wh
-        graph = symmetric_csr(ls, ld, lw, n)
-        gl = (g // w - j0) * ww + g % w - i0
-        dist, pred = dijkstra(graph, directed=True, indices=gl, return_predecessors=True)
-        return dist, pred
+        graph = window_graph(self.grid, self._obstacles, i0, j0, i1, j1)
+        ww = i1 - i0
+        gl = (g // self.w - j0) * ww + g % self.w - i0
+        return dijkstra(graph, directed=True, indices=gl, return_predecessors=True)
 
     def _outside_bound(self, si, sj, free_dist, i0, j0, i1, j1):
         """Lower bound on the cost of any path from (si, sj) that leaves the window: over the
