@@ -491,3 +491,54 @@ def test_window_graph_is_the_cut_of_the_free_graph():
         got = np.zeros_like(ref)
         got[rows[fin], g.indices[fin]] = g.data[fin]
         assert np.array_equal(got, ref)
+
+
+@pytest.mark.parametrize("name", ["cumberland", "broughton"])
+def test_planner_box_search_around_nearby_robots_is_exact(name):
+    """Robots a few metres ahead of a robot far from its goal: the plan comes from the small
+    box around them (not a window spanning start and goal) and costs what a whole-map
+    Dijkstra with the same obstacles gives."""
+    from scipy.sparse.csgraph import dijkstra
+    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
+    p = GlobalPlanner(m, obstacle_margin=0.2)
+    rng = np.random.default_rng(13)
+    free = np.argwhere(~p.lethal)
+    boxes = 0
+    for _ in range(60):
+        (aj, ai), (bj, bj_i) = free[rng.integers(len(free), size=2)]
+        start, goal = p.cell_center(ai, aj), p.cell_center(bj_i, bj)
+        p.clear_obstacles()
+        try:
+            base = p.plan(start, goal)
+        except PlanningError:
+            continue
+        if path_length(base) < 15.0:
+            continue
+        k = rng.integers(10, 25)
+        p.set_obstacles(base[k:k + 1] + rng.normal(0.0, 0.2, (2, 2)))
+        si, sj = p.cell(*start)
+        if p.blocked_mask()[sj, si]:
+            continue
+        try:
+            p.plan(start, goal)
+            cost = p.path_cost(start)
+        except PlanningError:
+            cost = math.inf
+        ref = dijkstra(p._csgraph(), directed=True, indices=bj * p.w + bj_i)[sj * p.w + si]
+        assert cost == pytest.approx(ref, rel=1e-5), (start, goal)
+        box = p._field[4]       # None: the obstacle-free path was clear, or a whole-map search
+        boxes += box is not None and (box[2] - box[0]) * p.res < 8.0 and \
+            (box[3] - box[1]) * p.res < 8.0
+    assert boxes >= 10, boxes
+
+
+def test_planner_robot_boxed_in_has_no_path_without_a_whole_map_search():
+    m = room(w=10, h=6.0)
+    p = GlobalPlanner(m)
+    p.plan((2.0, 3.0), (9.0, 3.0))
+    a = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    p.set_obstacles(np.column_stack([2.0 + 0.8 * np.cos(a), 3.0 + 0.8 * np.sin(a)]))
+    before = p.searches
+    with pytest.raises(PlanningError, match="no path"):
+        p.plan((2.0, 3.0), (9.0, 3.0))
+    assert p.searches - before == 1 and p._field[4] is not None

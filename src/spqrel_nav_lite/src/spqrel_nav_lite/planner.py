@@ -12,7 +12,11 @@ Patrol goals repeat (the same graph vertices over and over), so navigation funct
 without temporary obstacles are kept in a least-recently-used cache bounded in bytes
 (``cache_bytes``): a goal seen before costs no search at all while nothing is in the way.
 
-When the obstacle-free optimum crosses a temporary obstacle, the search with obstacles runs in
+When the obstacle-free optimum crosses a temporary obstacle, the search with obstacles first
+runs in the small box around the obstacles and the robot, continued outside by the cached
+obstacle-free function (``planner_grid.box_field``): its path is kept when it costs exactly the
+box's lower bound, which makes it optimal. Otherwise (or for a goal moved off its cell, which
+has no exact obstacle-free function) the search runs in
 a window around start and goal, grown until it is provably exact: a path that leaves the window
 passes a cell ``b`` just outside it and costs at least ``|start - b| + d_free(b)`` (edge costs
 are at least their length, and obstacles only remove edges), so a window path no dearer than
@@ -25,7 +29,7 @@ import math
 
 import numpy as np
 
-from .planner_grid import PlannerGrid, window_graph
+from .planner_grid import PlannerGrid, box_field, window_graph
 
 
 WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
@@ -199,7 +203,7 @@ class GlobalPlanner:
                 self._obstacles.ravel()[cells].any():
             # the obstacle-free optimum crosses a temporary obstacle: search around it
             # (otherwise that path is optimal with the obstacles too: they only remove cells)
-            self._field = (g,) + self._obstacle_field(s, g, free_dist=self._field[1])
+            self._field = (g,) + self._obstacle_field(s, g, free=self._field[1:3])
             cells = self._walk(s, g)
         if cells is None:
             raise PlanningError(f"no path from ({start[0]:.2f}, {start[1]:.2f}) to goal "
@@ -210,15 +214,28 @@ class GlobalPlanner:
         path[-1] = goal if self.map.is_free(*goal) and not blocked[gj, gi] else path[-1]
         return path
 
-    def _walk(self, s, g):
-        """Cell indices from ``s`` to ``g`` along the current field, or None if unreachable."""
-        dist, pred = self._field[1], self._field[2]
+    def _walk(self, s, g, field=None):
+        """Cell indices from ``s`` to ``g`` along the current field (or ``field``: (dist,
+        pred)), or None if unreachable. Every step of a field's walk lowers its value by the
+        step's cost, at least the resolution, so a longer walk is not one (a local field
+        entered from outside its box: see _local_field) and gives None too."""
+        dist, pred = self._field[1:3] if field is None else field
         if not np.isfinite(dist[s]):
             return None
         cells = [s]
+        cap = int(dist[s] / self.res) + 2
         while cells[-1] != g:
+            if len(cells) > cap or pred[cells[-1]] < 0:
+                return None
             cells.append(int(pred[cells[-1]]))
         return np.array(cells)
+
+    def _path_cost(self, cells):
+        """Cost of the walk ``cells`` (edge costs as in the cell graph)."""
+        i, j = cells % self.w, cells // self.w
+        length = np.hypot(np.diff(i), np.diff(j)) * self.res
+        c = self.cost.ravel()[cells]
+        return float(np.sum(length * 0.5 * (c[:-1] + c[1:])))
 
     def _navigation_function(self, g, free):
         """(dist, pred, free) of a Dijkstra run from cell index ``g``, without temporary
@@ -235,12 +252,17 @@ class GlobalPlanner:
         self.searches += 1
         return dist.astype(np.float32), pred.astype(np.int32), False, None
 
-    def _obstacle_field(self, s, g, free_dist=None):
+    def _obstacle_field(self, s, g, free=None):
         """(dist, pred, False, window) of the search with temporary obstacles, exact on the
         whole map (see the module notes); ``window`` is (i0, j0, i1, j1) or None for the whole
-        grid. ``free_dist``: the obstacle-free field of ``g`` (the lower bound outside)."""
-        if free_dist is None:
-            free_dist = self._free_bound(g)
+        grid. ``free``: (dist, pred) of the obstacle-free field of ``g`` if at hand."""
+        if free is None and self._taken_goal is None:
+            free = self._navigation_function(g, free=True)[:2]
+        if free is not None:
+            local = self._local_field(s, g, *free)
+            if local is not None:
+                return local
+        free_dist = self._free_bound(g) if free is None else free[0]
         w, h = self.w, self.h
         si, sj, gi, gj = s % w, s // w, g % w, g // w
         margin = max(int(math.ceil(WINDOW_MARGIN / self.res)),
@@ -266,6 +288,27 @@ class GlobalPlanner:
         lp = pred[ok]
         full_p[rows.ravel()[ok]] = (lp // ww + j0) * w + lp % ww + i0
         return full_d, full_p, False, (i0, j0, i1, j1)
+
+    def _local_field(self, s, g, free_dist, free_pred):
+        """(dist, pred, False, box) of the search with the temporary obstacles in the box
+        around them and the start, continued outside by the obstacle-free field
+        (:func:`~spqrel_nav_lite.planner_grid.box_field`), or None when its path from ``s`` is
+        not provably optimal: the walk from ``s`` must cost exactly the box's bound at ``s``.
+        The box is about the laser's reach around the robot, whatever the distance to the
+        goal, while the window search's area grows with that distance."""
+        out = box_field(self.grid, self._obstacles, s, g, free_dist, free_pred)
+        if out is None:
+            return None
+        self.searches += 1
+        full_d, full_p, box = out
+        if not np.isfinite(full_d[s]):
+            return full_d, full_p, False, box   # no way out of the box, nor to g: no path
+        walk = self._walk(s, g, (full_d, full_p))
+        if walk is None or self._obstacles.ravel()[walk].any() or \
+                self._path_cost(walk) > full_d[s] * (1.0 + 1e-5) + 1e-6:
+            return None
+        self.window_searches += 1
+        return full_d, full_p, False, box
 
     def _free_bound(self, g):
         """Lower bound, per cell, on the obstacle-free cost to goal cell ``g``: exact (the

@@ -73,6 +73,52 @@ def window_graph(grid, blocked, i0, j0, i1, j1):
     return g
 
 
+def box_field(grid, obstacles, s, g, free_dist, free_pred):
+    """Navigation function to cell ``g`` with the temporary ``obstacles`` (a boolean mask) in
+    the box around them and the start cell ``s``, continued outside the box by the
+    obstacle-free field (``free_dist``, ``free_pred``): (dist, pred, (i0, j0, i1, j1)), or
+    None when the box would cover more than a quarter of the grid.
+
+    Any path from a box cell either reaches ``g`` inside the box or leaves it through a border
+    cell ``b``, costing at least ``d_box(x, b) + free_dist[b]``. One Dijkstra in the box from a
+    virtual source linked to each open border cell with cost ``free_dist[b]`` (and to ``g``
+    with 0) gives the least of these bounds in every box cell: its dist is a lower bound of
+    the cost with the obstacles, exact where the path it leads to (box predecessors to a
+    border cell, then the obstacle-free ones) costs that much (the caller checks), and inf
+    only where no path exists at all. A border cell keeps its obstacle-free predecessor."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+    w, h = grid.w, grid.h
+    oj, oi = np.nonzero(obstacles)
+    si, sj = s % w, s // w
+    i0, i1 = max(0, min(oi.min(), si) - 2), min(w, max(oi.max(), si) + 3)
+    j0, j1 = max(0, min(oj.min(), sj) - 2), min(h, max(oj.max(), sj) + 3)
+    ww, wh = i1 - i0, j1 - j0
+    n = ww * wh
+    if 4 * n > w * h:
+        return None
+    box = window_graph(grid, obstacles, i0, j0, i1, j1)
+    cells = (np.arange(j0, j1)[:, None] * w + np.arange(i0, i1)[None, :]).ravel()
+    ring = np.zeros((wh, ww), dtype=bool)
+    ring[[0, -1], :] = ring[:, [0, -1]] = True
+    src = np.flatnonzero(ring.ravel() | (cells == g))
+    src = src[~obstacles.ravel()[cells[src]]]
+    offset = free_dist[cells[src]].astype(np.float64) + 1.0    # (an explicit 0 is no edge)
+    src, offset = src[np.isfinite(offset)], offset[np.isfinite(offset)]
+    graph = csr_matrix((np.concatenate([box.data, offset]),
+                        np.concatenate([box.indices, src.astype(np.int32)]),
+                        np.concatenate([box.indptr, [box.indptr[-1] + len(src)]])),
+                       shape=(n + 1, n + 1))
+    dist, pred = dijkstra(graph, directed=True, indices=n, return_predecessors=True)
+    dist, pred = dist[:n] - 1.0, pred[:n]
+    full_d, full_p = free_dist.copy(), free_pred.copy()
+    full_d[cells] = dist
+    inner = (pred >= 0) & (pred < n)
+    full_p[cells[inner]] = cells[pred[inner]]
+    full_p[cells[~np.isfinite(dist)]] = -9999
+    return full_d, full_p, (i0, j0, i1, j1)
+
+
 class NavFunctionCache:
     """Goal cell index -> (dist float32, pred int32) of obstacle-free Dijkstra runs; LRU,
     at most ``cache_bytes`` (each entry costs 8 bytes per grid cell) but room for at least
