@@ -77,7 +77,7 @@ def box_field(grid, obstacles, s, g, free_dist, free_pred):
     """Navigation function to cell ``g`` with the temporary ``obstacles`` (a boolean mask) in
     the box around them and the start cell ``s``, continued outside the box by the
     obstacle-free field (``free_dist``, ``free_pred``): (dist, pred, (i0, j0, i1, j1)), or
-    None when the box would cover more than a quarter of the grid.
+    None when there are no obstacles or the box would cover more than a quarter of the grid.
 
     Any path from a box cell either reaches ``g`` inside the box or leaves it through a border
     cell ``b``, costing at least ``d_box(x, b) + free_dist[b]``. One Dijkstra in the box from a
@@ -90,6 +90,8 @@ def box_field(grid, obstacles, s, g, free_dist, free_pred):
     from scipy.sparse.csgraph import dijkstra
     w, h = grid.w, grid.h
     oj, oi = np.nonzero(obstacles)
+    if not len(oi):
+        return None
     si, sj = s % w, s // w
     i0, i1 = max(0, min(oi.min(), si) - 2), min(w, max(oi.max(), si) + 3)
     j0, j1 = max(0, min(oj.min(), sj) - 2), min(h, max(oj.max(), sj) + 3)
