@@ -542,3 +542,38 @@ def test_planner_robot_boxed_in_has_no_path_without_a_whole_map_search():
     with pytest.raises(PlanningError, match="no path"):
         p.plan((2.0, 3.0), (9.0, 3.0))
     assert p.searches - before == 1 and p._field[4] is not None
+
+
+@pytest.mark.parametrize("name", ["cumberland", "broughton"])
+def test_planner_goal_taken_near_the_robot_is_searched_in_the_box(name):
+    """A robot standing on the goal vertex 1-3 m ahead (as the laser sees it): the moved goal
+    is reached inside the small box, exactly as a whole-map Dijkstra with the obstacles."""
+    from scipy.sparse.csgraph import dijkstra
+    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
+    p = GlobalPlanner(m, obstacle_margin=0.2)
+    rng = np.random.default_rng(17)
+    free = np.argwhere(~p.lethal)
+    boxes = 0
+    for _ in range(80):
+        bj, bi = free[rng.integers(len(free))]
+        goal = p.cell_center(bi, bj)
+        a, r = rng.uniform(0, 2 * np.pi), rng.uniform(1.0, 3.0)
+        start = (goal[0] + r * np.cos(a), goal[1] + r * np.sin(a))
+        si, sj = p.cell(*start)
+        if not p.in_grid(si, sj) or p.lethal[sj, si]:
+            continue
+        p.set_obstacles(np.array(goal) + rng.normal(0.0, 0.1, (1, 2)))
+        if p.blocked_mask()[sj, si]:
+            continue
+        try:
+            p.plan(start, goal)
+            cost, g = p.path_cost(start), p._field[0]
+        except PlanningError:
+            continue
+        ref = dijkstra(p._csgraph(), directed=True, indices=g)[sj * p.w + si]
+        assert g != bj * p.w + bi and cost == pytest.approx(ref, rel=1e-5), (start, goal)
+        box = p._field[4]
+        # (a window spans at least 2 m beyond start and goal: 4.1 m or more each way)
+        boxes += box is not None and (box[2] - box[0]) * p.res < 4.0 and \
+            (box[3] - box[1]) * p.res < 4.0
+    assert boxes >= 10, boxes

@@ -258,11 +258,11 @@ class GlobalPlanner:
         grid. ``free``: (dist, pred) of the obstacle-free field of ``g`` if at hand."""
         if free is None and self._taken_goal is None:
             free = self._navigation_function(g, free=True)[:2]
-        if free is not None:
-            local = self._local_field(s, g, *free)
-            if local is not None:
-                return local
-        free_dist = self._free_bound(g) if free is None else free[0]
+        # a moved goal has only a lower bound: the box's path must then reach it in the box
+        free_dist, free_pred = (self._free_bound(g), None) if free is None else free
+        local = self._local_field(s, g, free_dist, free_pred)
+        if local is not None:
+            return local
         w, h = self.w, self.h
         si, sj, gi, gj = s % w, s // w, g % w, g // w
         margin = max(int(math.ceil(WINDOW_MARGIN / self.res)),
@@ -291,9 +291,10 @@ class GlobalPlanner:
 
     def _local_field(self, s, g, free_dist, free_pred):
         """(dist, pred, False, box) of the search with the temporary obstacles in the box
-        around them and the start, continued outside by the obstacle-free field
-        (:func:`~spqrel_nav_lite.planner_grid.box_field`), or None when its path from ``s`` is
-        not provably optimal: the walk from ``s`` must cost exactly the box's bound at ``s``.
+        around them and the start, continued outside by the obstacle-free field if
+        ``free_pred`` is given (:func:`~spqrel_nav_lite.planner_grid.box_field`), or None when
+        its path from ``s`` is not provably optimal: the walk from ``s`` must cost exactly the
+        box's bound at ``s``.
         The box is about the laser's reach around the robot, whatever the distance to the
         goal, while the window search's area grows with that distance."""
         out = box_field(self.grid, self._obstacles, s, g, free_dist, free_pred)

@@ -78,6 +78,10 @@ def box_field(grid, obstacles, s, g, free_dist, free_pred):
     the box around them and the start cell ``s``, continued outside the box by the
     obstacle-free field (``free_dist``, ``free_pred``): (dist, pred, (i0, j0, i1, j1)), or
     None when there are no obstacles or the box would cover more than a quarter of the grid.
+    With ``free_pred`` None, ``free_dist`` need only be a lower bound of the obstacle-free
+    cost to ``g``: the field then ends at the border (dist inf and pred -9999 outside the
+    box, pred -9999 at a border cell reached from the virtual source), so only paths that
+    reach ``g`` inside the box can be walked, and those are optimal.
 
     Any path from a box cell either reaches ``g`` inside the box or leaves it through a border
     cell ``b``, costing at least ``d_box(x, b) + free_dist[b]``. One Dijkstra in the box from a
@@ -113,7 +117,11 @@ def box_field(grid, obstacles, s, g, free_dist, free_pred):
                        shape=(n + 1, n + 1))
     dist, pred = dijkstra(graph, directed=True, indices=n, return_predecessors=True)
     dist, pred = dist[:n] - 1.0, pred[:n]
-    full_d, full_p = free_dist.copy(), free_pred.copy()
+    if free_pred is None:
+        full_d = np.full(w * h, np.inf, dtype=np.float32)
+        full_p = np.full(w * h, -9999, dtype=np.int32)
+    else:
+        full_d, full_p = free_dist.copy(), free_pred.copy()
     full_d[cells] = dist
     inner = (pred >= 0) & (pred < n)
     full_p[cells[inner]] = cells[pred[inner]]
