@@ -387,15 +387,26 @@ def test_controller_stops_for_a_robot_coming_head_on_in_time():
     assert not compute_command((0.0, 0.0, 0.0), 0.75, 0.0, path, 0, far, 0.1, p, far).blocked
 
 
+def shipped_planner(name, seed):
+    """(planner on the shipped map ``name``, 0.2 m around temporary obstacles, a seeded
+    generator, the open cells as (j, i) rows) for the randomised planner tests."""
+    p = GlobalPlanner(load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml")),
+                      obstacle_margin=0.2)
+    return p, np.random.default_rng(seed), np.argwhere(~p.lethal)
+
+
+def whole_map_cost(p, g, si, sj):
+    """Cost from cell (si, sj) to goal cell index ``g`` by a Dijkstra over the whole map with
+    ``p``'s temporary obstacles: the reference of the windowed and boxed searches."""
+    from scipy.sparse.csgraph import dijkstra
+    return dijkstra(p._csgraph(), directed=True, indices=g)[sj * p.w + si]
+
+
 @pytest.mark.parametrize("name", ["grid", "cumberland"])
 def test_planner_windowed_search_with_obstacles_is_exact(name):
     """The search around temporary obstacles runs in a window; its path cost must equal a
     whole-map Dijkstra with the same obstacles (from the start and goal cells the plan used)."""
-    from scipy.sparse.csgraph import dijkstra
-    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
-    p = GlobalPlanner(m, obstacle_margin=0.2)
-    rng = np.random.default_rng(7)
-    free = np.argwhere(~p.lethal)
+    p, rng, free = shipped_planner(name, 7)
     checked = 0
     for _ in range(40):
         (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
@@ -419,7 +430,7 @@ def test_planner_windowed_search_with_obstacles_is_exact(name):
         except PlanningError:
             cost, g = math.inf, None
         if g is not None:
-            ref = dijkstra(p._csgraph(), directed=True, indices=g)[sj * p.w + si]
+            ref = whole_map_cost(p, g, si, sj)
             assert cost == pytest.approx(ref, rel=1e-5), (start, goal, pts)
             # (the last point is the goal itself, which may lie beside a robot)
             assert path_blocked(path[:-1], pts, p.robot_radius) is None
@@ -434,11 +445,7 @@ def test_planner_goal_taken_by_a_robot_is_exact_and_keeps_the_cache(name):
     there must cost what a whole-map Dijkstra with the same obstacles gives, and the moved
     cell (a new one for every robot standing nearby) must not cost a whole-map search nor
     enter the navigation-function cache; the vertex's own obstacle-free function does."""
-    from scipy.sparse.csgraph import dijkstra
-    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
-    p = GlobalPlanner(m, obstacle_margin=0.2)
-    rng = np.random.default_rng(11)
-    free = np.argwhere(~p.lethal)
+    p, rng, free = shipped_planner(name, 11)
     checked = 0
     for _ in range(80):
         (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
@@ -457,7 +464,7 @@ def test_planner_goal_taken_by_a_robot_is_exact_and_keeps_the_cache(name):
         g = p._field[0]
         assert g != bj * p.w + bi                       # the goal was moved off its cell
         assert math.hypot(path[-1][0] - goal[0], path[-1][1] - goal[1]) <= 0.4 + p.res
-        ref = dijkstra(p._csgraph(), directed=True, indices=g)[sj * p.w + si]
+        ref = whole_map_cost(p, g, si, sj)
         assert p.path_cost(start) == pytest.approx(ref, rel=1e-5), (start, goal)
         assert list(p._cache._d) == [bj * p.w + bi]      # only the vertex's own function
         assert not p._field[3]                          # searched with the obstacles
@@ -498,11 +505,7 @@ def test_planner_box_search_around_nearby_robots_is_exact(name):
     """Robots a few metres ahead of a robot far from its goal: the plan comes from the small
     box around them (not a window spanning start and goal) and costs what a whole-map
     Dijkstra with the same obstacles gives."""
-    from scipy.sparse.csgraph import dijkstra
-    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
-    p = GlobalPlanner(m, obstacle_margin=0.2)
-    rng = np.random.default_rng(13)
-    free = np.argwhere(~p.lethal)
+    p, rng, free = shipped_planner(name, 13)
     boxes = 0
     for _ in range(60):
         (aj, ai), (bj, bj_i) = free[rng.integers(len(free), size=2)]
@@ -524,7 +527,7 @@ def test_planner_box_search_around_nearby_robots_is_exact(name):
             cost = p.path_cost(start)
         except PlanningError:
             cost = math.inf
-        ref = dijkstra(p._csgraph(), directed=True, indices=bj * p.w + bj_i)[sj * p.w + si]
+        ref = whole_map_cost(p, bj * p.w + bj_i, si, sj)
         assert cost == pytest.approx(ref, rel=1e-5), (start, goal)
         box = p._field[4]       # None: the obstacle-free path was clear, or a whole-map search
         boxes += box is not None and (box[2] - box[0]) * p.res < 8.0 and \
@@ -548,11 +551,7 @@ def test_planner_robot_boxed_in_has_no_path_without_a_whole_map_search():
 def test_planner_goal_taken_near_the_robot_is_searched_in_the_box(name):
     """A robot standing on the goal vertex 1-3 m ahead (as the laser sees it): the moved goal
     is reached inside the small box, exactly as a whole-map Dijkstra with the obstacles."""
-    from scipy.sparse.csgraph import dijkstra
-    m = load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml"))
-    p = GlobalPlanner(m, obstacle_margin=0.2)
-    rng = np.random.default_rng(17)
-    free = np.argwhere(~p.lethal)
+    p, rng, free = shipped_planner(name, 17)
     boxes = 0
     for _ in range(80):
         bj, bi = free[rng.integers(len(free))]
@@ -570,7 +569,7 @@ def test_planner_goal_taken_near_the_robot_is_searched_in_the_box(name):
             cost, g = p.path_cost(start), p._field[0]
         except PlanningError:
             continue
-        ref = dijkstra(p._csgraph(), directed=True, indices=g)[sj * p.w + si]
+        ref = whole_map_cost(p, g, si, sj)
         assert g != bj * p.w + bi and cost == pytest.approx(ref, rel=1e-5), (start, goal)
         box = p._field[4]
         # (a window spans at least 2 m beyond start and goal: 4.1 m or more each way)

@@ -15,21 +15,22 @@ without temporary obstacles are kept in a least-recently-used cache bounded in b
 When the obstacle-free optimum crosses a temporary obstacle, the search with obstacles first
 runs in the small box around the obstacles and the robot, continued outside by the cached
 obstacle-free function (``planner_grid.box_field``): its path is kept when it costs exactly the
-box's lower bound, which makes it optimal. Otherwise (or for a goal moved off its cell, which
-has no exact obstacle-free function) the search runs in
+box's lower bound, which makes it optimal. Otherwise the search runs in
 a window around start and goal, grown until it is provably exact: a path that leaves the window
 passes a cell ``b`` just outside it and costs at least ``|start - b| + d_free(b)`` (edge costs
 are at least their length, and obstacles only remove edges), so a window path no dearer than
 the smallest such bound is optimal on the whole map. The window grows (doubling its margin)
 until that holds or it covers the map. A goal moved off its own cell because a robot stands
-there is searched this way at once, bounded by the (cached) function of the goal's own cell,
-never by a whole-map search of its own (see ``_free_bound``).
+there is searched with the obstacles at once (box, then window), bounded by the (cached)
+function of the goal's own cell, never by a whole-map search of its own (see ``_free_bound``):
+the box's path must then reach the goal inside the box.
 """
 import math
 
 import numpy as np
 
-from .planner_grid import PlannerGrid, box_field, window_graph
+from .planner_grid import (PlannerGrid, box_field, edge_cost, embed_field, window_cells,
+                           window_graph)
 
 
 WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
@@ -235,7 +236,7 @@ class GlobalPlanner:
         i, j = cells % self.w, cells // self.w
         length = np.hypot(np.diff(i), np.diff(j)) * self.res
         c = self.cost.ravel()[cells]
-        return float(np.sum(length * 0.5 * (c[:-1] + c[1:])))
+        return float(np.sum(edge_cost(length, c[:-1], c[1:])))
 
     def _navigation_function(self, g, free):
         """(dist, pred, free) of a Dijkstra run from cell index ``g``, without temporary
@@ -280,13 +281,9 @@ class GlobalPlanner:
                 break
             margin *= 2
         self.window_searches += 1
-        full_d = np.full(w * h, np.inf, dtype=np.float32)
-        full_p = np.full(w * h, -9999, dtype=np.int32)
-        rows = np.arange(j0, j1)[:, None] * w + np.arange(i0, i1)[None, :]
-        full_d[rows.ravel()] = dist
-        ok = pred >= 0
-        lp = pred[ok]
-        full_p[rows.ravel()[ok]] = (lp // ww + j0) * w + lp % ww + i0
+        full_d, full_p = embed_field(window_cells(w, i0, j0, i1, j1), dist, pred,
+                                     np.full(w * h, np.inf, dtype=np.float32),
+                                     np.full(w * h, -9999, dtype=np.int32))
         return full_d, full_p, False, (i0, j0, i1, j1)
 
     def _local_field(self, s, g, free_dist, free_pred):
@@ -321,7 +318,7 @@ class GlobalPlanner:
         robots on cumberland: 4 of 5 whole-map searches, 80 ms each; docs/benchmarks/runner.md)
         while the vertices themselves stay cached."""
         g0 = self._taken_goal
-        if g0 is not None and g0 != g:
+        if g0 is not None:
             d0 = self._navigation_function(g0, free=True)[0]
             if np.isfinite(d0[g]):
                 return np.maximum(d0 - d0[g], 0.0)

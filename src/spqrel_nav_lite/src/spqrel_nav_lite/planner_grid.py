@@ -27,6 +27,31 @@ def symmetric_csr(src, dst, weight, n):
     return g
 
 
+def edge_cost(length, cost_a, cost_b):
+    """Weight of the edge of ``length`` metres between cells of costs ``cost_a`` and
+    ``cost_b`` (numbers or arrays): the one formula of the cell graph, its windows and the
+    planner's path costs, so that they agree to the last bit."""
+    return length * 0.5 * (cost_a + cost_b)
+
+
+def window_cells(w, i0, j0, i1, j1):
+    """Grid cell indices (grid width ``w``) of the window [i0, i1) x [j0, j1), row-major,
+    i.e. in the order of its window index."""
+    return (np.arange(j0, j1)[:, None] * w + np.arange(i0, i1)[None, :]).ravel()
+
+
+def embed_field(cells, dist, pred, full_d, full_p):
+    """Write a search over the window ``cells`` (dist and pred by window index; preds outside
+    [0, len(cells)) are roots or a virtual source) into the whole-grid arrays ``full_d`` and
+    ``full_p``, in place: preds become grid indices, an unreached cell gets pred -9999, and a
+    cell whose pred is a root or the virtual source keeps the pred it had. Returns them."""
+    full_d[cells] = dist
+    inner = (pred >= 0) & (pred < len(cells))
+    full_p[cells[inner]] = cells[pred[inner]]
+    full_p[cells[~np.isfinite(dist)]] = -9999
+    return full_d, full_p
+
+
 #: the 8 neighbour offsets (dj, di) in the order of their cell index (a CSR row's order)
 NEIGHBOURS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 
@@ -67,7 +92,7 @@ def window_graph(grid, blocked, i0, j0, i1, j1):
         if di and dj:       # no corner cutting past a forbidden (static) cell
             edge &= ok[1 + dj:wh + 1 + dj, 1:ww + 1] & ok[1:wh + 1, 1 + di:ww + 1 + di]
         length = math.hypot(di, dj) * grid.res
-        data[:, :, k] = np.where(edge, length * 0.5 * (cost[here] + cost[there]), np.inf)
+        data[:, :, k] = np.where(edge, edge_cost(length, cost[here], cost[there]), np.inf)
         indices[:, :, k] = np.where(edge, local + (dj * ww + di), local)
     g = csr_matrix((data.ravel(), indices.ravel(), np.arange(0, 8 * n + 1, 8)), shape=(n, n))
     return g
@@ -104,7 +129,7 @@ def box_field(grid, obstacles, s, g, free_dist, free_pred):
     if 4 * n > w * h:
         return None
     box = window_graph(grid, obstacles, i0, j0, i1, j1)
-    cells = (np.arange(j0, j1)[:, None] * w + np.arange(i0, i1)[None, :]).ravel()
+    cells = window_cells(w, i0, j0, i1, j1)
     ring = np.zeros((wh, ww), dtype=bool)
     ring[[0, -1], :] = ring[:, [0, -1]] = True
     src = np.flatnonzero(ring.ravel() | (cells == g))
@@ -122,11 +147,7 @@ def box_field(grid, obstacles, s, g, free_dist, free_pred):
         full_p = np.full(w * h, -9999, dtype=np.int32)
     else:
         full_d, full_p = free_dist.copy(), free_pred.copy()
-    full_d[cells] = dist
-    inner = (pred >= 0) & (pred < n)
-    full_p[cells[inner]] = cells[pred[inner]]
-    full_p[cells[~np.isfinite(dist)]] = -9999
-    return full_d, full_p, (i0, j0, i1, j1)
+    return embed_field(cells, dist, pred, full_d, full_p) + ((i0, j0, i1, j1),)
 
 
 class NavFunctionCache:
@@ -221,7 +242,7 @@ class PlannerGrid:
             cb = self.cost[j0 + dj:j1 + dj, i0 + di:i1 + di][m]
             src.append(a[m])
             dst.append(b[m])
-            wt.append(length * 0.5 * (ca + cb))
+            wt.append(edge_cost(length, ca, cb))
         return (np.concatenate(src).astype(np.int32), np.concatenate(dst).astype(np.int32),
                 np.concatenate(wt))
 
