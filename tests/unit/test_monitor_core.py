@@ -77,6 +77,26 @@ def test_node_level_metrics_and_interference_rate():
     assert s.cycles == 0                 # vertex 3 visited once only
 
 
+def test_cycles_is_the_least_visit_count_after_every_report():
+    """The cycle count is kept up to date report by report (not recounted over the
+    vertices): after every report it equals the least number of counted visits of any
+    vertex, and ``new_cycle`` is true exactly when it grew."""
+    import random
+    for seed in range(20):
+        rng = random.Random(seed)
+        n = rng.randint(1, 9)
+        m = MonitorCore(n, 3)
+        m.start(0.0)
+        before = 0
+        for k in range(rng.randint(1, 300)):
+            # biased towards a few vertices, so the minimum lags and then jumps
+            v = rng.randrange(n) if rng.random() < 0.3 else rng.randrange(max(1, n // 3))
+            r = m.visit(rng.randrange(3), v, 1.0 + k)
+            assert m.cycles == max(0, min(m.visits)) == r.cycles, (seed, k)
+            assert r.new_cycle == (m.cycles > before)
+            before = m.cycles
+
+
 def test_min_rule_replaces_tiny_minimum():
     c = MonitorCore(1, 1)
     c.start(0.0)

@@ -193,19 +193,32 @@ class PatrolAgentCore(ScenarioMixin, Driver):
             return
         if data[1] >= FIRST_ALGORITHM_TYPE and self.phase in ("starting", "patrol"):
             if self.comm is None:
-                # perfect links: delivered at once (what _receive_results does, without its
-                # call: a team of 12 hears each algorithm message 11 times)
-                self._perfect_results += 1
-                self._deliver(data)
+                self.hear(data, self.fx.now())
                 return
             # no copy here: _deliver hands the strategy its own copy (a delayed message
             # keeps the published list, which no one changes after publishing)
             self._receive_results(data, self._deliver)
 
-    def _deliver(self, data: List[int]) -> None:
-        """An algorithm message the communication model let through (possibly late)."""
+    def hear(self, data: List[int], now: float) -> None:
+        """An algorithm message (type >= FIRST_ALGORITHM_TYPE) from another robot over
+        perfect links (no communication model), at time ``now``: what :meth:`on_results`
+        does with it, in one call. Delivered at once, without the model's call: a team of 12
+        hears each message 11 times, so graph mode's broadcast calls this directly."""
+        if data[0] == self.id:
+            return
+        if self.failed:
+            self._counts["ignored_failed"] += 1
+            return
+        if self.phase in ("starting", "patrol"):
+            self._perfect_results += 1
+            self._deliver(data, now)
+
+    def _deliver(self, data: List[int], now: Optional[float] = None) -> None:
+        """An algorithm message the communication model let through (possibly late);
+        ``now``: the clock, if the caller has read it."""
         if self.phase in ("starting", "patrol") and not self.failed:
-            now = self.fx.now()
+            if now is None:
+                now = self.fx.now()
             self.heard(data[0], now)
             if self.started:
                 self.strategy.on_message(list(data), now)

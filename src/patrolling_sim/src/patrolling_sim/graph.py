@@ -341,8 +341,11 @@ class PatrolGraph:
     @property
     def dist(self):
         """(n, n) array of shortest-path costs in pixels (inf if unreachable)."""
-        self._all_pairs()
-        return self._dist
+        d = self._dist
+        if d is None:                  # read in every decision: no call once computed
+            self._all_pairs()
+            d = self._dist
+        return d
 
     def path(self, u, v):
         """Shortest path u..v (list of vertex ids, both ends included)."""

@@ -80,20 +80,24 @@ class FeedbackTicks:
         return k + 1 if any(r.pieces is not None for r in self.robots) else math.inf
 
     def _feedback_lazy(self, k):
-        """Tick ``k`` doing only the work that can find an interference. Each moving robot i
-        has a due tick: until then no robot of a lower id can come within INTERFERENCE_DIST
-        of it (no robot moves faster than v = ``speed`` x graph.max_stretch() in the plane,
-        so a pair at distance d needs at least (d - INTERFERENCE_DIST) / (2 v) s), or it is
-        in its 10 s quiet period. A due
-        robot publishes its position, the moving robots of lower id publish theirs (the
-        values a full tick would publish), its core is asked only if one of them is within
-        INTERFERENCE_DIST, and its next due tick is computed. A robot starting a trip is due
-        at the next tick (:meth:`wake`). Ticks at which no robot is due are not simulated.
+        """Tick ``k`` doing only the work that can find an interference. Each pair of robots
+        j < i has a due tick: until then the two cannot be within INTERFERENCE_DIST (no robot
+        moves faster than v = ``speed`` x graph.max_stretch() in the plane, so a pair at
+        distance d needs at least (d - INTERFERENCE_DIST) / (2 v) s). A moving robot i is due
+        at the first due tick of its pairs with lower ids, or at the end of its 10 s quiet
+        period. A due robot publishes its position; for each of its due pairs the robot of
+        lower id publishes its own if moving (the values a full tick would publish), their
+        distance is measured and the pair's next due tick computed; the core is asked only if
+        one of them is within INTERFERENCE_DIST (then the published positions of all its
+        lower ids are brought to this tick first, as a full tick has them). A robot starting
+        a trip is due at the next tick (:meth:`wake`). Ticks at which no robot is due are
+        not simulated.
 
-        Why not one bound for the whole team: on a map with 12 robots some pair is almost
-        always close, which made every tick a full one (a fifth of a reference run's CPU)."""
+        Why per pair: on a small map with 12 robots some robot is near another at almost
+        every tick, and re-measuring all its pairs then made the ticks a fifth of a reference
+        run's CPU; one close pair now costs one measurement."""
         t = self.t
-        robots, due = self.robots, self._due
+        robots, due, pair_due = self.robots, self._due, self._pair_due
         team = self.team_pos
         d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
         per_tick = self._closing_per_tick
@@ -122,30 +126,37 @@ class FeedbackTicks:
                 continue
             x, y = xy
             near = False                          # a published position within reach
-            dmin2 = math.inf                      # closest lower id, true positions
+            pd = pair_due[i]
+            first = math.inf                      # the first due tick of i's pairs
             for j in range(i):
-                rj = robots[j]
-                if rj.pieces is not None:
-                    p = fresh.get(j)
-                    if p is None:
-                        p = fresh[j] = team[j] = rj.xy_at(t)
-                    published = True
-                else:
-                    p = rj.xy                     # standing: where it stood (published) or
-                    published = j in team         # where it starts (not yet published)
-                d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
-                if d2 < dmin2:
-                    dmin2 = d2
-                if published and d2 <= d2max:
-                    near = True
+                dj = pd[j]
+                if dj <= k:
+                    rj = robots[j]
+                    if rj.pieces is not None:
+                        p = fresh.get(j)
+                        if p is None:
+                            p = fresh[j] = team[j] = rj.xy_at(t)
+                        published = True
+                    else:
+                        p = rj.xy                 # standing: where it stood (published) or
+                        published = j in team     # where it starts (not yet published)
+                    d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
+                    if published and d2 <= d2max:
+                        near = True
+                    q = int((math.sqrt(d2) - INTERFERENCE_DIST) / per_tick)
+                    dj = pd[j] = k + (q if q > 1 else 1)
+                if dj < first:
+                    first = dj
             if near:
+                for j in range(i):                # the core reads every lower id's position
+                    rj = robots[j]
+                    if rj.pieces is not None and j not in fresh:
+                        fresh[j] = team[j] = rj.xy_at(t)
                 core.on_feedback(r.seq, x, y)
                 # an interference stops it (a later trip wakes it)
                 due[i] = k + 1 if r.pieces is not None else math.inf
-            elif dmin2 == math.inf:               # no lower id: nothing to evaluate
-                due[i] = math.inf
-            else:
-                due[i] = k + max(1, int((math.sqrt(dmin2) - INTERFERENCE_DIST) / per_tick))
+            else:                                 # robot 0 has no pair: never due
+                due[i] = first
             if due[i] < nxt:
                 nxt = due[i]
         return nxt

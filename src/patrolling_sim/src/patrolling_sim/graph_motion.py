@@ -19,7 +19,7 @@ class _Robot(Effects):
         self.id = rid
         self.core = None
         self.loc = (start_vertex, start_vertex, 0.0)
-        self.xy = tuple(float(c) for c in sim.g.pos[start_vertex])
+        self.xy = sim.vertex_xy[start_vertex]
         self.last_vertex = start_vertex       # last vertex reached (reachability of goals)
         self.goal = None
         self.pieces = None                    # active trip, None when standing still
@@ -77,11 +77,12 @@ class _Robot(Effects):
         """Pieces from the current location to ``goal``; None if unreachable."""
         g = self.sim.g
         res = g.resolution
-        gx, gy = (float(c) for c in g.pos[goal])
         if not math.isfinite(g.dist[self.last_vertex, goal]):
             return None
+        vxy = self.sim.vertex_xy
         if self.sim.cfg.travel == "euclidean":
             x, y = self.xy
+            gx, gy = vxy[goal]
             return [(x, y, gx, gy, math.hypot(gx - x, gy - y), None, None, 0.0, 0.0)]
         a, b, f = self.loc
         if a != b and 0.0 < f < 1.0:
@@ -93,9 +94,9 @@ class _Robot(Effects):
             if not (math.isfinite(via_a) or math.isfinite(via_b)):
                 return None
             if via_b <= via_a:
-                end, first = b, (x, y, *g.pos[b], (1.0 - f) * length, a, b, f, 1.0)
+                end, first = b, (x, y, *vxy[b], (1.0 - f) * length, a, b, f, 1.0)
             else:
-                end, first = a, (x, y, *g.pos[a], f * length, a, b, f, 0.0)
+                end, first = a, (x, y, *vxy[a], f * length, a, b, f, 0.0)
             return [first] + self._edge_pieces(g.path(end, goal))
         start = b if (a != b and f >= 1.0) else a
         # a trip between two vertices is the same every time: built once per run (the
@@ -110,10 +111,11 @@ class _Robot(Effects):
     def _edge_pieces(self, path):
         g = self.sim.g
         res = g.resolution
+        vxy = self.sim.vertex_xy
         out = []
         for u, w in zip(path, path[1:]):
-            (x0, y0), (x1, y1) = g.pos[u], g.pos[w]
-            out.append((float(x0), float(y0), float(x1), float(y1), g.arc_cost(u, w) * res,
+            (x0, y0), (x1, y1) = vxy[u], vxy[w]
+            out.append((x0, y0, x1, y1, g.arc_cost(u, w) * res,
                         u, w, 0.0, 1.0))
         return out
 
@@ -144,12 +146,21 @@ class _Robot(Effects):
         return x0 + (x1 - x0) * r, y0 + (y1 - y0) * r, loc
 
     def xy_at(self, t):
-        """(x, y) at time ``t`` of the active trip: :meth:`position` without the location
-        (the feedback tick's hot path)."""
-        at = self._piece_at(t)
-        if at is None:
+        """(x, y) at time ``t`` of the active trip: :meth:`position` without the location.
+        The feedback tick's hot path, so :meth:`_piece_at`'s arithmetic is written out here
+        (the same operations in the same order: the same numbers)."""
+        cum = self.cum
+        total = cum[-1] if cum else 0.0
+        if total <= 0.0:
             return self.xy
-        (x0, y0, x1, y1, *_), r = at
+        s = (t - self.depart) / self.duration * total
+        s = total if s > total else (0.0 if s < 0.0 else s)
+        pieces = self.pieces
+        k = bisect.bisect_left(cum, s)
+        if k >= len(pieces):
+            k = len(pieces) - 1
+        x0, y0, x1, y1, length = pieces[k][:5]
+        r = (s - (cum[k] - length)) / length if length > 0 else 1.0
         return x0 + (x1 - x0) * r, y0 + (y1 - y0) * r
 
     def _stop(self):
@@ -170,7 +181,7 @@ class _Robot(Effects):
         self.pieces = self.cum = None
         self.token += 1
         self.loc = (v, v, 0.0)
-        self.xy = tuple(float(c) for c in self.sim.g.pos[v])
+        self.xy = self.sim.vertex_xy[v]
         self.sim.stood(self)                       # last feedback: on the vertex
         self.last_vertex = v
         self.core.on_goal_result(seq, True)

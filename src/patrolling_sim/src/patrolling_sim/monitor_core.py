@@ -96,6 +96,11 @@ class MonitorCore:
         self.ready: Set[int] = set()
         self.time_zero: Optional[float] = None
         self.visits = [-1] * n_vertices
+        #: min(self.visits) and how many vertices have it, kept up to date by visit() (the
+        #: cycle count is that minimum; recounting every vertex at each visit cost a few per
+        #: cent of a graph-mode run)
+        self._min_visits = -1
+        self._at_min = n_vertices
         self.last_visit = [0.0] * n_vertices     # time since GO of the last visit
         self._vn = [0] * n_vertices              # per-vertex sample count
         self._vs1 = [0.0] * n_vertices
@@ -156,6 +161,11 @@ class MonitorCore:
             self.last_report[robot_id] = t
         else:
             self.foreign_reports += 1
+        if self.visits[vertex] == self._min_visits:
+            self._at_min -= 1
+            if self._at_min == 0:               # every vertex is above the old minimum
+                self._min_visits += 1
+                self._at_min = self.visits.count(self._min_visits) + 1   # + this vertex
         self.visits[vertex] += 1
         idl = None
         if self.visits[vertex] > 0:
@@ -171,7 +181,7 @@ class MonitorCore:
             self._vs1[vertex] += idl
             self._vs2[vertex] += idl * idl
         self.last_visit[vertex] = t
-        cycles = max(0, min(self.visits))
+        cycles = max(0, self._min_visits)
         new_cycle = cycles > self.cycles
         self.cycles = cycles
         return VisitResult(t, idl, new_cycle, cycles)

@@ -142,9 +142,9 @@ class ResultWriter:
     ``results.txt`` empty (a block is appended per complete patrol cycle); ``info.csv`` by :meth:`write_info`, written to a
     temporary file and renamed, so it is either complete or absent.
 
-    Rows are flushed at once when ``flush_every`` is 0 (the ROS monitor: a node killed with
-    SIGKILL loses nothing), otherwise at most ``flush_every`` wall seconds after they were
-    written (graph mode: a flush per row was 5 % of a graph run's CPU time; a SIGKILL loses
+    Rows and ``results.txt`` blocks are flushed at once when ``flush_every`` is 0 (the ROS
+    monitor: a node killed with SIGKILL loses nothing), otherwise at most ``flush_every``
+    wall seconds after they were written (graph mode: a flush per row was 5 % of a graph run's CPU time; a SIGKILL loses
     at most that much wall time of rows, any other ending closes the files).
     """
 
@@ -164,7 +164,7 @@ class ResultWriter:
         self._time.write(TIMERESULTS_HEADER + "\n")
         self._time.flush()
         # results.txt exists from the start (empty until the first complete patrol cycle)
-        open(prefix + "_results.txt", "a", encoding="utf-8").close()
+        self._res = open(prefix + "_results.txt", "a", encoding="utf-8")
         # beyond the original's four files: every visit report after GO, the input of
         # patrolling_sim.metrics (docs/metrics.md)
         self._visits = open(prefix + "_visits.csv", "a", encoding="utf-8")
@@ -192,6 +192,7 @@ class ResultWriter:
         elif time.monotonic() >= self._next_flush:
             self._idl.flush()
             self._visits.flush()
+            self._res.flush()
             self._next_flush = time.monotonic() + self.flush_every
 
     def time_row(self, stats: Stats) -> None:
@@ -201,8 +202,8 @@ class ResultWriter:
         self._time.flush()
 
     def cycle_block(self, stats: Stats, real_elapsed: float) -> None:
-        with open(self.path("results.txt"), "a", encoding="utf-8") as f:
-            f.write(results_block(stats, real_elapsed, self.info.comm_delay))
+        self._res.write(results_block(stats, real_elapsed, self.info.comm_delay))
+        self._flush(self._res)
 
     def write_info(self, stats: Stats, real_elapsed: float, termination: str) -> str:
         """Write ``info.csv`` atomically; returns its path."""
@@ -215,7 +216,7 @@ class ResultWriter:
         return path
 
     def close(self) -> None:
-        for f in (self._idl, self._time, self._visits):
+        for f in (self._idl, self._time, self._visits, self._res):
             if not f.closed:
                 f.close()
 

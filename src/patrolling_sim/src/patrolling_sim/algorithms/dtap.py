@@ -138,7 +138,8 @@ class DTASSIPart(PatrolStrategy):
             self.best_bid[v] = (bid, robot)
             if synced and (old[1] == self.id) == (robot == self.id):
                 self._tasks_of = self.best_bid.version  # v stays in (or out of) our tasks
-        self._update_tasks()
+        if self._tasks_of != self.best_bid.version:     # (_update_tasks' own test, inline:
+            self._update_tasks()                        # most bids change nothing)
 
     # -- decisions --------------------------------------------------------------------------
     def _select(self, cv, now):
