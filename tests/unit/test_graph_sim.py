@@ -290,3 +290,31 @@ def test_first_tick_at_is_the_first_lattice_point_not_before_t():
     for t in (0.0, 0.1, 0.2, 1029.0, 1029.0000001, 5145 * P, 5145 * P + 1e-12, 7.3, 3599.9):
         k = first_tick_at(t)
         assert k * P >= t and (k == 0 or (k - 1) * P < t), (t, k)
+
+
+@pytest.mark.parametrize("kw", [
+    dict(map="grid", robots=4, alg="CR", seed=1),                     # multi-edge trips
+    dict(map="cumberland", robots=6, alg="DTAG", seed=2),              # interference stops
+    dict(map="grid", robots=3, alg="RAND", seed=5, travel="euclidean", goal_fail=0.3),
+])
+def test_xy_at_is_position_without_the_location(kw):
+    """The feedback tick's xy_at repeats position()'s arithmetic inline: it must give the
+    same floats, to the last bit, at every instant of every trip (a different rounding
+    would change which robots are found near each other)."""
+    sim = GraphSimulator(GraphSimConfig(duration=300, **kw))
+    checked = []
+    publish = sim.publish
+
+    def check(sender, data):
+        for r in sim.robots:
+            if r.pieces is None:
+                continue
+            for frac in (0.0, 0.137, 0.5, 0.999, 1.0, 1.7):
+                t = r.depart + frac * r.duration
+                x, y, _ = r.position(t)
+                assert r.xy_at(t) == (x, y)
+                checked.append(t)
+        publish(sender, data)
+    sim.publish = check
+    sim.run(write=False)
+    assert len(checked) > 100
