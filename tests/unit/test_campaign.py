@@ -307,11 +307,12 @@ def test_a_signal_after_the_last_run_interrupts_nothing(tmp_path):
 
 
 def _live_children():
-    """Ids of this process's children that are not zombies (Linux /proc), except
-    multiprocessing's resource tracker (started with the first spawned process, it lives as
-    long as this process by design)."""
+    """Ids of the live (not zombie) processes this process started, directly or through
+    multiprocessing's forkserver (which forks the LocalCluster's workers), except the
+    resource tracker and the forkserver themselves: both are started with the first
+    cluster and live as long as this process by design (Linux /proc)."""
     from patrolling_sim.runner.proctree import proc_stat
-    me, out = os.getpid(), set()
+    me, kids = os.getpid(), {}
     for d in os.listdir("/proc"):
         if d.isdigit():
             st = proc_stat(d)
@@ -320,9 +321,16 @@ def _live_children():
                     cmd = f.read()
             except OSError:
                 continue
-            if (st is not None and st.ppid == me and st.state != "Z"
-                    and b"multiprocessing.resource_tracker" not in cmd):
-                out.add(int(d))
+            if st is not None and st.state != "Z":
+                kids.setdefault(st.ppid, []).append((int(d), cmd))
+    out = set()
+    for pid, cmd in kids.get(me, []):
+        if b"multiprocessing.resource_tracker" in cmd:
+            continue
+        if b"multiprocessing.forkserver" in cmd:     # the server: its children are workers
+            out.update(p for p, _ in kids.get(pid, []))
+        else:
+            out.add(pid)
     return out
 
 
@@ -359,3 +367,41 @@ def test_a_signal_while_the_cluster_starts_stops_it(tmp_path, monkeypatch):
             break
         time.sleep(0.1)
     assert _live_children() <= before
+
+
+def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
+    """The LocalCluster's workers are children of multiprocessing's forkserver, which has
+    imported distributed and the simulator (campaign.WORKER_PRELOAD), not interpreters
+    spawned by the client: while a run is stored, the forkserver has a live child and the
+    client no worker of its own."""
+    import io
+    from multiprocessing import forkserver
+    import patrolling_sim.campaign as campaign_mod
+    from patrolling_sim.runner.proctree import proc_stat
+    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
+                                                                    map=["grid"], alg=["CR"]),
+                                               seeds=2)))
+    seen = []
+
+    def children_of(pid):
+        out = []
+        for d in os.listdir("/proc"):
+            st = proc_stat(d) if d.isdigit() else None
+            if st is not None and st.ppid == pid and st.state != "Z":
+                out.append(int(d))
+        return out
+
+    def look(rec):
+        server = forkserver._forkserver._forkserver_pid
+        seen.append((server, children_of(server) if server else [], _live_children()))
+
+    res = campaign_mod.run_campaign(camp, str(tmp_path / "out"), workers=1,
+                                    stream=io.StringIO(), on_record=look)
+    assert res["ran"] == 2 and not res["interrupted"]
+    server, workers, own = seen[0]
+    assert server is not None and len(workers) == 1
+    assert own == set(workers)               # no worker of the client's own
+    with open(f"/proc/{server}/cmdline", "rb") as f:
+        assert b"multiprocessing.forkserver" in f.read()
+    import dask
+    assert dask.config.get("distributed.worker.multiprocessing-method") == "forkserver"
