@@ -119,7 +119,7 @@ def test_interrupted_campaign_resumes_to_the_clean_result(tmp_path):
     done_first = len(load_state(resumed))
     if proc.returncode == 130:
         assert "interrupted" in out and 3 <= done_first < 12
-        # the workers ignore it (campaign_tasks.IgnoreSigint): no traceback of theirs, no
+        # the workers ignore it (campaign_tasks.IgnoreGroupSignals): no traceback of theirs, no
         # warning about killing them
         assert "Traceback" not in out and "KeyboardInterrupt" not in out, out[-3000:]
         assert "killing" not in out, out[-3000:]
@@ -306,6 +306,35 @@ def test_a_signal_after_the_last_run_interrupts_nothing(tmp_path):
     assert yaml.safe_load(open(os.path.join(out, "provenance.yaml")))["interrupted"]
 
 
+def test_sigterm_to_the_process_group_stops_cleanly(tmp_path):
+    """A SIGTERM to the campaign's whole process group (``kill -TERM -PGID``, a batch system
+    ending the job) reaches the Dask workers too: the campaign stops as on its own SIGTERM
+    (exit 143, "interrupted", complete files for every record) and no worker dies in a
+    traceback or is restarted by its Nanny."""
+    path = _write(tmp_path, dict(CAMPAIGN, fixed={"duration": 3600}))
+    out = str(tmp_path / "term")
+    proc = subprocess.Popen([sys.executable, SCRIPT, path, "--workers", "2", "--no-report",
+                             "--out", out], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, env=_env(), start_new_session=True)
+    state_dir = os.path.join(out, "state")
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if os.path.isdir(state_dir) and len(os.listdir(state_dir)) >= 3:
+            os.killpg(proc.pid, signal.SIGTERM)
+            break
+        time.sleep(0.05)
+    text, _ = proc.communicate(timeout=300)
+    done = len(load_state(out))
+    if proc.returncode == 143:
+        assert "interrupted" in text and 3 <= done < 12
+        for word in ("Traceback", "Restarting worker", "killing", "ERROR"):
+            assert word not in text, text[-3000:]
+    else:                     # the campaign finished before the signal could land
+        assert proc.returncode == 0 and done == 12, text[-3000:]
+    assert _info_count(out) == done
+    assert (_table(out)["status"] == "NOT_RUN").sum() == 12 - done
+
+
 def _live_children():
     """Ids of the live (not zombie) processes this process started, directly or through
     multiprocessing's forkserver (which forks the LocalCluster's workers), except the
@@ -405,3 +434,26 @@ def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
         assert b"multiprocessing.forkserver" in f.read()
     import dask
     assert dask.config.get("distributed.worker.multiprocessing-method") == "forkserver"
+
+
+def test_worker_plugin_lets_group_signals_pass_but_not_to_the_programs_it_starts():
+    """The worker plugin gives SIGINT and SIGTERM a handler that does nothing, not SIG_IGN:
+    an ignored signal would be inherited by a ROS run the worker starts, a handled one is
+    back to its default there."""
+    from patrolling_sim.campaign_tasks import IgnoreGroupSignals
+    sigs = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.getsignal(s) for s in sigs}
+    try:
+        IgnoreGroupSignals().setup()
+        for s in sigs:
+            h = signal.getsignal(s)
+            assert callable(h) and h not in (signal.SIG_IGN, signal.SIG_DFL, old[s])
+        os.kill(os.getpid(), signal.SIGTERM)       # handled: nothing happens
+        child = subprocess.run(
+            [sys.executable, "-c", "import signal; print(signal.getsignal(signal.SIGTERM) is "
+             "signal.SIG_DFL, signal.getsignal(signal.SIGINT) is signal.default_int_handler)"],
+            capture_output=True, text=True, timeout=60)
+        assert child.stdout.split() == ["True", "True"], child.stdout + child.stderr
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)

@@ -46,7 +46,8 @@ from .campaign_spec import (DONE_STATUSES, FAILED_STATUSES, MODES, RESULTS_DIR, 
                             load_campaign, run_key)
 from .campaign_store import (load_state, needs_run, store_result, summary_table,  # noqa: F401
                              write_table, _write_atomic)
-from .campaign_tasks import IgnoreSigint, chunks, run_graph_chunk, run_graph_task, run_ros_task  # noqa: F401,E501
+from .campaign_forkserver import MARK as FORKSERVER_MARK
+from .campaign_tasks import IgnoreGroupSignals, chunks, run_graph_chunk, run_graph_task, run_ros_task  # noqa: F401,E501
 
 
 class _Progress:
@@ -92,7 +93,9 @@ REPORT_RUN_PLOTS_MAX = 200
 
 
 #: what the forkserver of the LocalCluster's workers imports once, before it forks them
-WORKER_PRELOAD = ["distributed", "patrolling_sim.campaign_tasks", "patrolling_sim.graph_sim"]
+#: (campaign_forkserver first: it makes the server ignore a SIGTERM sent to the process group)
+WORKER_PRELOAD = ["patrolling_sim.campaign_forkserver", "distributed",
+                  "patrolling_sim.campaign_tasks", "patrolling_sim.graph_sim"]
 
 
 def _env_for_workers():
@@ -120,7 +123,11 @@ def _env_for_workers():
     from multiprocessing import forkserver
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(WORKER_PRELOAD)
-    forkserver.ensure_running()
+    os.environ[FORKSERVER_MARK] = "1"          # seen by the server only (campaign_forkserver)
+    try:
+        forkserver.ensure_running()
+    finally:
+        os.environ.pop(FORKSERVER_MARK, None)
     dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})
 
 
@@ -232,8 +239,9 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             else:
                 cluster = starting.result()
                 client = Client(cluster)
-                # our workers ignore a terminal's Ctrl-C (campaign_tasks.IgnoreSigint)
-                client.register_worker_plugin(IgnoreSigint(), name="ignore-sigint")
+                # our workers let a signal to the process group pass: the campaign stops
+                # them (campaign_tasks.IgnoreGroupSignals)
+                client.register_worker_plugin(IgnoreGroupSignals(), name="ignore-group-signals")
             link = getattr(client, "dashboard_link", None)
             stream.write(f"campaign {campaign.name}: {len(campaign.runs)} runs, {skipped} already "
                          f"done, {len(todo)} to run on {len(client.scheduler_info()['workers'])} "

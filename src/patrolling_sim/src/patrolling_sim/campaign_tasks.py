@@ -16,19 +16,29 @@ from typing import Dict, List
 import yaml
 
 
-class IgnoreSigint:
+def _ignore(signum, frame):
+    """A handler that does nothing (see :class:`IgnoreGroupSignals`)."""
+
+
+class IgnoreGroupSignals:
     """Worker plugin (``distributed.WorkerPlugin`` protocol) that the campaign registers on
     the workers of the LocalCluster it starts.
 
-    Those workers share the campaign's process group, so a terminal's Ctrl-C reaches them as
-    well as the campaign, and Dask's worker process then dies in its own KeyboardInterrupt
-    traceback after the campaign's clean "interrupted" line. With this plugin a worker
-    ignores SIGINT; the campaign stops its cluster itself. A ROS run that a worker starts
-    installs its own handlers (scripts/early_signal.py), so it still stops on Ctrl-C."""
+    Those workers share the campaign's process group, so a terminal's Ctrl-C (SIGINT), or a
+    SIGTERM sent to the group (``kill -TERM -PGID``, a batch system ending a job), reaches
+    them as well as the campaign. Dask's worker process then died in its own traceback
+    after the campaign's clean "interrupted" line, and with SIGTERM its Nanny restarted it
+    and printed some 80 lines of errors while the campaign was stopping. With this plugin a
+    worker lets both signals pass; the campaign stops its cluster itself (the Nanny asks
+    each worker to close and kills it if it does not). The signals get a handler that does
+    nothing rather than SIG_IGN: an ignored signal is inherited by the programs a worker
+    starts, a handled one is reset to its default at their start, so a ROS run started by a
+    worker still stops on them (it installs its own handlers, scripts/early_signal.py)."""
 
     def setup(self, worker=None):
         if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGINT, _ignore)
+            signal.signal(signal.SIGTERM, _ignore)
 
 
 class WorldCache:
