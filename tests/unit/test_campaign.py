@@ -93,6 +93,24 @@ def _info_count(out):
                for f in fs)
 
 
+def _signal_group_after_three_runs(cmd, out, sig):
+    """Start the campaign command ``cmd`` (writing to ``out``) in a process group of its own,
+    send ``sig`` to the whole group once 3 runs are stored (as a terminal's Ctrl-C or a
+    batch system's SIGTERM does: the Dask workers get it too); (exit code, output)."""
+    proc = subprocess.Popen(cmd + ["--out", out], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=_env(),
+                            start_new_session=True)
+    state_dir = os.path.join(out, "state")
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if os.path.isdir(state_dir) and len(os.listdir(state_dir)) >= 3:
+            os.killpg(proc.pid, sig)
+            break
+        time.sleep(0.05)
+    text, _ = proc.communicate(timeout=300)
+    return proc.returncode, text
+
+
 def test_interrupted_campaign_resumes_to_the_clean_result(tmp_path):
     # hour-long runs: a 300 s graph run now takes a few ms, and all 12 could finish between
     # the third stored run and the SIGINT, so the interruption would not land mid-campaign
@@ -105,26 +123,16 @@ def test_interrupted_campaign_resumes_to_the_clean_result(tmp_path):
 
     # interrupt once some runs are stored, then resume. SIGINT as a terminal's Ctrl-C sends
     # it: to the whole process group, so the Dask workers get it too
-    proc = subprocess.Popen(cmd + ["--out", resumed], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=_env(),
-                            start_new_session=True)
-    state_dir = os.path.join(resumed, "state")
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        if os.path.isdir(state_dir) and len(os.listdir(state_dir)) >= 3:
-            os.killpg(proc.pid, signal.SIGINT)
-            break
-        time.sleep(0.05)
-    out, _ = proc.communicate(timeout=300)
+    rc, out = _signal_group_after_three_runs(cmd, resumed, signal.SIGINT)
     done_first = len(load_state(resumed))
-    if proc.returncode == 130:
+    if rc == 130:
         assert "interrupted" in out and 3 <= done_first < 12
         # the workers ignore it (campaign_tasks.IgnoreGroupSignals): no traceback of theirs, no
         # warning about killing them
         assert "Traceback" not in out and "KeyboardInterrupt" not in out, out[-3000:]
         assert "killing" not in out, out[-3000:]
     else:                     # the campaign finished before the signal could land
-        assert proc.returncode == 0 and done_first == 12
+        assert rc == 0 and done_first == 12
     assert _info_count(resumed) == done_first               # complete files for every record
     p = subprocess.run(cmd + ["--out", resumed], capture_output=True, text=True, env=_env(),
                        timeout=600)
@@ -313,24 +321,15 @@ def test_sigterm_to_the_process_group_stops_cleanly(tmp_path):
     traceback or is restarted by its Nanny."""
     path = _write(tmp_path, dict(CAMPAIGN, fixed={"duration": 3600}))
     out = str(tmp_path / "term")
-    proc = subprocess.Popen([sys.executable, SCRIPT, path, "--workers", "2", "--no-report",
-                             "--out", out], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, env=_env(), start_new_session=True)
-    state_dir = os.path.join(out, "state")
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        if os.path.isdir(state_dir) and len(os.listdir(state_dir)) >= 3:
-            os.killpg(proc.pid, signal.SIGTERM)
-            break
-        time.sleep(0.05)
-    text, _ = proc.communicate(timeout=300)
+    rc, text = _signal_group_after_three_runs(
+        [sys.executable, SCRIPT, path, "--workers", "2", "--no-report"], out, signal.SIGTERM)
     done = len(load_state(out))
-    if proc.returncode == 143:
+    if rc == 143:
         assert "interrupted" in text and 3 <= done < 12
         for word in ("Traceback", "Restarting worker", "killing", "ERROR"):
             assert word not in text, text[-3000:]
     else:                     # the campaign finished before the signal could land
-        assert proc.returncode == 0 and done == 12, text[-3000:]
+        assert rc == 0 and done == 12, text[-3000:]
     assert _info_count(out) == done
     assert (_table(out)["status"] == "NOT_RUN").sum() == 12 - done
 
