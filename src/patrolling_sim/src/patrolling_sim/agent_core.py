@@ -19,7 +19,7 @@ reached vertex), ``deciding`` (the strategy has not chosen yet, asked again ever
 Not thread safe: a multi-threaded driver (rospy) calls it under one lock.
 """
 import random
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from .agent_faults import MIN_COMM_DELAY, ScenarioMixin, make_comm  # noqa: F401
 from .algorithms.base import (MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED,
@@ -113,7 +113,7 @@ class PatrolAgentCore(ScenarioMixin, Driver):
         self.phase = "init"
         self.state = None
         self.started = False
-        self.pending_msgs: List[List[int]] = []   # algorithm messages between GO and start
+        self.pending_msgs: List[Tuple[int, ...]] = []   # algorithm messages, GO to start
         self.target: Optional[int] = None         # vertex of the current (or paused) goal
         self.seq = 0                # goal sequence number: stale outcomes/timers are ignored
         self.resends = 0
@@ -195,11 +195,10 @@ class PatrolAgentCore(ScenarioMixin, Driver):
             if self.comm is None:
                 self.hear(data, self.fx.now())
                 return
-            # no copy here: _deliver hands the strategy its own copy (a delayed message
-            # keeps the published list, which no one changes after publishing)
+            # the strategy gets a tuple (_hand_over): no one changes a published message
             self._receive_results(data, self._deliver)
 
-    def hear(self, data: List[int], now: float) -> None:
+    def hear(self, data: Sequence[int], now: float) -> None:
         """An algorithm message (type >= FIRST_ALGORITHM_TYPE) from another robot over
         perfect links (no communication model), at time ``now``: what :meth:`on_results`
         does with it, in one call. Delivered at once, without the model's call: a team of 12
@@ -211,19 +210,25 @@ class PatrolAgentCore(ScenarioMixin, Driver):
             return
         if self.phase in ("starting", "patrol"):
             self._perfect_results += 1
-            self._deliver(data, now)
+            self._hand_over(data, now)
 
-    def _deliver(self, data: List[int], now: Optional[float] = None) -> None:
+    def _deliver(self, data: Sequence[int], now: Optional[float] = None) -> None:
         """An algorithm message the communication model let through (possibly late);
         ``now``: the clock, if the caller has read it."""
         if self.phase in ("starting", "patrol") and not self.failed:
-            if now is None:
-                now = self.fx.now()
-            self.heard(data[0], now)
-            if self.started:
-                self.strategy.on_message(list(data), now)
-            else:
-                self.pending_msgs.append(list(data))
+            self._hand_over(data, self.fx.now() if now is None else now)
+
+    def _hand_over(self, data: Sequence[int], now: float) -> None:
+        """A delivered algorithm message to the strategy (or kept until it starts), as a
+        tuple: read-only, so one tuple can reach every receiver without a copy each (graph
+        mode's broadcast hands all of them the same one)."""
+        self.heard(data[0], now)
+        if type(data) is not tuple:
+            data = tuple(data)
+        if self.started:
+            self.strategy.on_message(data, now)
+        else:
+            self.pending_msgs.append(data)
 
     def on_position(self, robot_id: int, x: float, y: float) -> None:
         """A teammate's position (from /positions)."""

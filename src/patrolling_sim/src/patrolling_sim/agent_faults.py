@@ -114,7 +114,8 @@ class ScenarioMixin:
     def heard(self, robot: int, now: float) -> None:
         """A teammate's algorithm message was delivered (teammate-silence bookkeeping)."""
         self.last_heard[robot] = now
-        self.silent.discard(robot)
+        if self.silent:
+            self.silent.discard(robot)
 
     def comm_counters(self) -> Dict[str, int]:
         """Messages this robot received through the model (see :data:`COUNTER_KEYS`);

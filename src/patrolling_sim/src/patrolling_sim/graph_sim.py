@@ -172,6 +172,7 @@ class GraphSimulator(FeedbackTicks):
         last receiver); the run loop's cycle limit is checked after each receiver, as it
         would be after each event."""
         cycles = self.cfg.cycles
+        data = tuple(data)      # one read-only copy for every receiver (AgentCore._hand_over)
         # an algorithm message over perfect links: each core's direct entry (the same
         # handling as on_results, a third of a message-heavy run's time went to the calls)
         direct = len(data) > 1 and data[1] >= FIRST_ALGORITHM_TYPE

@@ -34,7 +34,7 @@ graph mode is deterministic for a given seed.
 """
 import random
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from ..graph import PatrolGraph
 
@@ -153,9 +153,10 @@ class PatrolStrategy:
         it shares with its teammates (the original's order: update, decide, report, share,
         go). Default: nothing."""
 
-    def on_message(self, data: List[int], now: float) -> None:
+    def on_message(self, data: Tuple[int, ...], now: float) -> None:
         """A /results message from another robot (own messages are filtered out by the
-        driver). Default: ignore."""
+        driver), as a tuple: one message may reach every teammate as the same object.
+        Default: ignore."""
 
     def on_teammate_silent(self, robot_id: int, now: float) -> None:
         """Teammate ``robot_id`` has sent nothing for ``teammate_timeout`` s (it may have

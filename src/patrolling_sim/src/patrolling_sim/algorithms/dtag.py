@@ -35,6 +35,7 @@ class DTAGreedy(PatrolStrategy):
         self.gi = None
         self.origin = ctx.start_position
         self._origin_dist = None
+        self._row_terms = {}
 
     def start(self, start_vertex, now):
         super().start(start_vertex, now)
@@ -47,14 +48,27 @@ class DTAGreedy(PatrolStrategy):
         super().on_arrival(vertex, now)
         self.gi.advance(now)[vertex] = 0.0
 
+    def _terms(self, u):
+        """(theta_navigation * pathcost(u, .), theta_distance_from_origin * |origin - .|,
+        the vertices not to choose from u: u itself and the unreachable ones, whether any
+        other is left), kept per u: they do not change during a run."""
+        t = self._row_terms.get(u)
+        if t is None:
+            p = self.p
+            if self._origin_dist is None:
+                self._origin_dist = np.hypot(self.graph.pos[:, 0] - self.origin[0],
+                                             self.graph.pos[:, 1] - self.origin[1])
+            excluded = ~np.isfinite(self.graph.dist[u])
+            excluded[u] = True
+            t = self._row_terms[u] = (p["theta_navigation"] * self.graph.dist[u],
+                                      p["theta_distance_from_origin"] * self._origin_dist,
+                                      excluded, not excluded.all())
+        return t
+
     def utility(self, u, g):
         """Utility of every vertex as a goal from u (numpy array)."""
-        p = self.p
-        if self._origin_dist is None:
-            self._origin_dist = np.hypot(self.graph.pos[:, 0] - self.origin[0],
-                                         self.graph.pos[:, 1] - self.origin[1])
-        return (p["theta_idleness"] * g + p["theta_navigation"] * self.graph.dist[u]
-                + p["theta_distance_from_origin"] * self._origin_dist)
+        nav, origin = self._terms(u)[:2]
+        return self.p["theta_idleness"] * g + nav + origin
 
     def choose_next(self, now):
         """Zero the current vertex's estimate, then the first maximum of the utility over
@@ -62,11 +76,11 @@ class DTAGreedy(PatrolStrategy):
         u = self.current
         g = self.gi.advance(now)
         g[u] = 0.0
-        score = self.utility(u, g)
-        score[~np.isfinite(self.graph.dist[u])] = -np.inf
-        score[u] = -np.inf
-        if not np.isfinite(score).any():
+        nav, origin, excluded, any_left = self._terms(u)
+        if not any_left:
             return u
+        score = self.p["theta_idleness"] * g + nav + origin
+        score[excluded] = -np.inf
         return int(np.argmax(score))        # first maximum, as the original
 
     def send_results(self, now):

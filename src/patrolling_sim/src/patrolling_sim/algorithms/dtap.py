@@ -48,6 +48,7 @@ DEFAULTS = {"timeout": 3.0, "theta_idleness": 1.0, "theta_navigation": 0.0,
             "theta_hop": -2.0, "threshold": 0.0, "hist": 0.0}
 #: the stored value of "no bid yet" (any real bid replaces it)
 NO_BID = float("inf")
+NO_BID_ENTRY = (NO_BID, -1)
 #: auction wait: min(timeout, AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * |tasks|) seconds
 AUCTION_BASE_WAIT = 1.0
 AUCTION_WAIT_PER_TASK = 0.1
@@ -70,8 +71,10 @@ class DTASSIPart(PatrolStrategy):
         super().__init__(ctx)
         self.p = dta_params(ctx, "DTASSI", DEFAULTS)
         self.algorithm_params = ",".join(f"{self.p[k]:g}" for k in DEFAULTS)
+        self._hist_factor = 1.0 + self.p["hist"]    # a bid replaces one >= factor * it
         self.gi = None
         self.hops = path_hops(self.graph)
+        self._hop_rows = {}
         self.best_bid = VersionedDict()     # vertex -> (bid, robot id)
         self.task_set = set()       # vertices whose best bid is this robot's
         self._tasks_of = -1         # best_bid.version the task set was derived from
@@ -121,9 +124,18 @@ class DTASSIPart(PatrolStrategy):
                         best, best_sum = t, s
             self.center = best
 
+    def _hop_terms(self, cv):
+        """(theta_hop * hops(cv, .) * V, the vertices unreachable from cv), kept per cv: they
+        do not change during a run."""
+        t = self._hop_rows.get(cv)
+        if t is None:
+            t = self._hop_rows[cv] = (self.p["theta_hop"] * self.hops[cv] * self.graph.n,
+                                      ~np.isfinite(self.hops[cv]))
+        return t
+
     def utility(self, cv, g):
         """U(cv, v) for every vertex v (numpy array)."""
-        return self.p["theta_idleness"] * g + self.p["theta_hop"] * self.hops[cv] * self.graph.n
+        return self.p["theta_idleness"] * g + self._hop_terms(cv)[0]
 
     def bid(self, v):
         if v in (self.next, self.won):
@@ -132,14 +144,15 @@ class DTASSIPart(PatrolStrategy):
 
     def record_bid(self, v, bid, robot):
         """The original's update_bids: keep the better bid (with hysteresis), refresh tasks."""
-        old = self.best_bid.get(v, (NO_BID, -1))
-        if old[0] >= (1.0 + self.p["hist"]) * bid:
-            synced = self._tasks_of == self.best_bid.version
-            self.best_bid[v] = (bid, robot)
+        table = self.best_bid
+        old = table.get(v, NO_BID_ENTRY)
+        if old[0] >= self._hist_factor * bid:
+            synced = self._tasks_of == table.version
+            table[v] = (bid, robot)
             if synced and (old[1] == self.id) == (robot == self.id):
-                self._tasks_of = self.best_bid.version  # v stays in (or out of) our tasks
-        if self._tasks_of != self.best_bid.version:     # (_update_tasks' own test, inline:
-            self._update_tasks()                        # most bids change nothing)
+                self._tasks_of = table.version  # v stays in (or out of) our tasks
+        if self._tasks_of != table.version:     # (_update_tasks' own test, inline: most
+            self._update_tasks()                # bids change nothing)
 
     # -- decisions --------------------------------------------------------------------------
     def _select(self, cv, now):
@@ -147,7 +160,7 @@ class DTASSIPart(PatrolStrategy):
         if len(self.selected) >= self.graph.n:
             self.selected = {self.current}
         u = self.utility(cv, self.gi.advance(now))
-        u[~np.isfinite(self.hops[cv])] = -np.inf
+        u[self._hop_terms(cv)[1]] = -np.inf
         for v in self.selected:
             u[v] = -np.inf
         v = int(np.argmax(u)) if np.isfinite(u).any() else cv
@@ -159,7 +172,7 @@ class DTASSIPart(PatrolStrategy):
         U from the current vertex."""
         g = self._advance(now)
         u = self.utility(self.current, g)
-        u[~np.isfinite(self.hops[self.current])] = -np.inf
+        u[self._hop_terms(self.current)[1]] = -np.inf
         u[self.current] = -np.inf
         return int(np.argmax(u)) if np.isfinite(u).any() else self.current
 
@@ -223,7 +236,7 @@ class DTASSIPart(PatrolStrategy):
             return                              # superseded
         _, cv, v = self.auction
         now = self.driver.now()
-        best = self.best_bid.get(v, (NO_BID, -1))
+        best = self.best_bid.get(v, NO_BID_ENTRY)
         if best[1] == self.id:
             self._update_tasks()
         elif not self._greedy(cv, v, best, now):
