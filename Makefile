@@ -29,9 +29,10 @@ run: setup
 	/usr/bin/python3 scripts/report.py $(RESULTS)/$(MAP)_$(ROBOTS)/$(ALG) --out $(RESULTS)/report
 	@echo "report: $(RESULTS)/report/report.html (plots: $(RESULTS)/report/*.png)"
 
-## test: setup, then every unit test and every rostest, one pytest summary at the end
+## test: setup, then every unit test and every rostest, one pytest summary at the end; two
+## pytest-xdist workers: the ROS tests one after another on one, the unit tests on the other
 test: setup
-	/usr/bin/python3 -m pytest -p no:cacheprovider tests $(PYTEST_ARGS)
+	/usr/bin/python3 -m pytest -p no:cacheprovider -n 2 --dist loadgroup tests $(PYTEST_ARGS)
 
 ## unit: only the pure-Python unit tests (no ROS master, no build needed)
 unit:

@@ -4,6 +4,8 @@ import os
 import signal
 import sys
 
+import pytest
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 for pkg in ("patrolling_sim", "spqrel_nav_lite"):
     p = os.path.join(ROOT, "src", pkg, "src")
@@ -14,6 +16,13 @@ for pkg in ("patrolling_sim", "spqrel_nav_lite"):
 # --- processes the tests started in groups of their own (tests/process_guard.py) ---------
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import process_guard  # noqa: E402
+
+
+#: ROS test modules run after the others (see pytest_collection_modifyitems)
+ROS_LAST = ("test_abstract_fidelity.py",)
+#: s between SIGTERM and SIGKILL to the groups tests left running (process_guard), in a plain
+#: session and in a pytest-xdist worker
+GRACE, WORKER_GRACE = 15.0, 4.0
 
 
 def _sigterm_as_ctrl_c(signum, frame):
@@ -27,8 +36,26 @@ def pytest_configure(config):
         signal.signal(signal.SIGTERM, _sigterm_as_ctrl_c)
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Two groups for ``make test``'s two workers (``-n 2 --dist loadgroup``): the ROS tests
+    run one after another on one worker, as they always did (each starts its own master, and
+    some a whole experiment), and the unit tests on the other, beside them; a ROS test leaves
+    most of the second core idle (docs/BENCHMARKS.md, "Setup and test suite"). Without
+    xdist the marks do nothing. The ROS modules of :data:`ROS_LAST` run last, when the unit
+    tests are done: they make several experiments at a time and take most of both cores."""
+    ros = os.path.join(ROOT, "tests", "ros") + os.sep
+    for item in items:
+        group = "ros" if str(item.fspath).startswith(ros) else "unit"
+        item.add_marker(pytest.mark.xdist_group(group))
+    items.sort(key=lambda item: os.path.basename(str(item.fspath)) in ROS_LAST)   # stable
+
+
 def pytest_sessionfinish(session, exitstatus):
-    stopped = process_guard.stop_leftovers()
+    # a pytest-xdist worker: the controller's Ctrl-C or SIGTERM interrupts it through execnet,
+    # which kills it 10 s later; SIGKILL the groups left before that
+    worker = hasattr(session.config, "workerinput")
+    stopped = process_guard.stop_leftovers(grace=WORKER_GRACE if worker else GRACE)
     if stopped:
         lines = [f"group {g}: pids {', '.join(map(str, sorted(p)))}"
                  for g, p in sorted(stopped.items())]

@@ -71,3 +71,51 @@ def test_a_live_leader_with_another_start_time_is_not_ours():
     finally:
         os.killpg(p.pid, signal.SIGKILL)
         p.wait()
+
+
+SLEEPER_TEST = '''
+import os, subprocess, time
+def test_sleeps():
+    p = subprocess.Popen(["bash", "-c", "trap '' TERM; sleep 300"], start_new_session=True)
+    with open(os.environ["GUARD_PIDFILE"], "w") as f:
+        f.write(str(p.pid))
+    time.sleep(300)
+'''
+
+
+def test_sigterm_to_an_xdist_session_stops_what_its_workers_started(tmp_path):
+    """``make test`` runs pytest-xdist workers; a CI timeout's SIGTERM reaches only the
+    controller, which interrupts its workers and kills them 10 s later. A worker's process
+    guard must stop what its tests started before that: here a group that ignores SIGTERM,
+    so only the SIGKILL after the worker's shorter grace stops it."""
+    import time
+    (tmp_path / "test_sleeper.py").write_text(SLEEPER_TEST)
+    pidfile = tmp_path / "sleeper.pid"
+    env = dict(os.environ, GUARD_PIDFILE=str(pidfile),
+               PYTHONPATH=os.path.join(os.path.dirname(__file__), "..") + os.pathsep
+               + os.environ.get("PYTHONPATH", ""))
+    p = subprocess.Popen([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p",
+                          "conftest", "-n", "1", "-q", "test_sleeper.py"], cwd=str(tmp_path),
+                         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                         start_new_session=True)
+    sleeper = None
+    try:
+        for _ in range(1200):                   # the worker's test has started its group
+            if pidfile.exists() and pidfile.read_text():
+                sleeper = int(pidfile.read_text())
+                break
+            time.sleep(0.05)
+        assert sleeper is not None, "the sleeper test never started"
+        p.send_signal(signal.SIGTERM)
+        out, _ = p.communicate(timeout=120)
+        for _ in range(200):                    # SIGKILL is delivered asynchronously
+            if not process_guard.members(sleeper):
+                break
+            time.sleep(0.05)
+        assert not process_guard.members(sleeper), f"the test's group survived:\n{out}"
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+        if sleeper is not None and process_guard.members(sleeper):
+            os.killpg(sleeper, signal.SIGKILL)
