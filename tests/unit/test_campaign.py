@@ -249,6 +249,51 @@ def test_row_has_the_longest_silence_of_the_visit_log():
     assert 0 < m["longest_silence"] < 400
 
 
+def test_a_runs_warnings_go_to_its_record_not_to_the_terminal(tmp_path, monkeypatch, capsys):
+    """What the package logs during a graph run of a campaign (DTAG's int16 clamp, ...) is
+    kept with that run: its state record lists the lines (at most 20, then a count),
+    runs.csv counts them, the summary says how many runs had some, and nothing is printed."""
+    import logging
+    from patrolling_sim import graph_sim
+    from patrolling_sim.campaign import store_result, write_table
+    from patrolling_sim.campaign_store import summary_table
+    from patrolling_sim.campaign_tasks import run_graph_task
+    real_run = graph_sim.GraphSimulator.run
+
+    def noisy_run(self, *a, **kw):
+        for i in range(23):
+            logging.getLogger("patrolling_sim.algorithms.dta_common").warning("clamp %d", i)
+        return real_run(self, *a, **kw)
+    monkeypatch.setattr(graph_sim.GraphSimulator, "run", noisy_run)
+    printed = []                # what would reach the worker's stderr: the root logger
+
+    class Root(logging.Handler):
+        def emit(self, record):
+            printed.append(record)
+    root = Root()
+    logging.getLogger().addHandler(root)
+    try:
+        res = run_graph_task(dict(map="grid", robots=2, alg="DTAG", duration=60.0, seed=0))
+    finally:
+        logging.getLogger().removeHandler(root)
+    assert res["warnings"] == [f"WARNING: clamp {i}" for i in range(20)] + ["... and 3 more"]
+    assert not printed and capsys.readouterr().err == ""
+    assert logging.getLogger("patrolling_sim").propagate          # restored after the run
+    monkeypatch.setattr(graph_sim.GraphSimulator, "run", real_run)
+    quiet = run_graph_task(dict(map="grid", robots=2, alg="DTAG", duration=60.0, seed=1))
+    assert "warnings" not in quiet
+    camp = load_campaign(_write(tmp_path, CAMPAIGN))
+    out = str(tmp_path / "out")
+    state = {camp.runs[0].key: store_result(out, camp.runs[0], res, camp),
+             camp.runs[1].key: store_result(out, camp.runs[1], quiet, camp)}
+    rec = yaml.safe_load(open(os.path.join(out, "state", camp.runs[0].key + ".yaml")))
+    assert rec["warnings"] == res["warnings"]
+    write_table(out, camp, state)
+    df = pd.read_csv(os.path.join(out, "runs.csv"))
+    assert list(df["warnings"][:2]) == [21, 0]
+    assert "warnings: 1 run(s) logged warnings" in summary_table(out)
+
+
 def test_runs_with_one_time_stamp_keep_their_files_apart(tmp_path):
     """Runs stored within one second share a prefix: each gets its own suffix, across calls
     (a resumed campaign starts with an empty suffix memory and must not overwrite files)."""

@@ -92,6 +92,8 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign,
               "metrics": metrics}
     if result.get("error"):
         record["error"] = result["error"]
+    if result.get("warnings"):
+        record["warnings"] = result["warnings"]
     if result.get("log_tail") and record["status"] not in DONE_STATUSES:
         record["log_tail"] = result["log_tail"]
     _write_atomic(os.path.join(out, STATE_DIR, spec.key + ".yaml"),
@@ -121,6 +123,7 @@ def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
             row["wall_s"] = rec.get("wall")
             row["cpu_s"] = rec.get("cpu_s")
             row.update(rec.get("metrics") or {})
+            row["warnings"] = len(rec.get("warnings") or ())
         row.update(extra_row_columns(spec, rec))
         rows.append(row)
     path = os.path.join(out, "runs.csv")
@@ -146,5 +149,9 @@ def summary_table(out: str) -> str:
         lines.append(t.round(2).to_string())
     counts = df["status"].value_counts().to_dict()
     lines.append("status: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    if "warnings" in df and (df["warnings"] > 0).any():
+        n = int((df["warnings"] > 0).sum())
+        lines.append(f"warnings: {n} run(s) logged warnings (column 'warnings' of runs.csv; "
+                     f"the lines are in their state records, {STATE_DIR}/<key>.yaml)")
     return "\n".join(lines)
 

@@ -2,6 +2,7 @@
 process, returning everything in memory (file contents, the metrics row, provenance). Part of
 :mod:`patrolling_sim.campaign`."""
 import datetime
+import logging
 import os
 import platform
 import resource
@@ -196,7 +197,8 @@ def run_graph_task(config: dict, worlds: "WorldCache" = None) -> dict:
     t0 = datetime.datetime.now(datetime.timezone.utc)
     wall = time.monotonic()
     cpu = time.thread_time()
-    with tempfile.TemporaryDirectory(prefix="campaign_", dir=_tmp_root()) as tmp:
+    with tempfile.TemporaryDirectory(prefix="campaign_", dir=_tmp_root()) as tmp, \
+            RunWarnings() as warnings:
         cfg = GraphSimConfig(**dict(config, results_dir=tmp))
         g, starts = (worlds or worker_worlds()).get(cfg)
         sim = GraphSimulator(cfg, start_vertices=starts, pgraph=g)
@@ -205,9 +207,52 @@ def run_graph_task(config: dict, worlds: "WorldCache" = None) -> dict:
         files = _read_tree(tmp)
         metrics = run_metrics(files, prefix, config["map"], sim.prefix + "_visits.csv")
     t1 = datetime.datetime.now(datetime.timezone.utc)
-    return {"prefix": prefix, "files": files, "status": sim.termination, "rc": 0,
-            "metrics": metrics, "cpu_s": time.thread_time() - cpu,
-            "wall": time.monotonic() - wall, "provenance": _provenance(t0, t1)}
+    out = {"prefix": prefix, "files": files, "status": sim.termination, "rc": 0,
+           "metrics": metrics, "cpu_s": time.thread_time() - cpu,
+           "wall": time.monotonic() - wall, "provenance": _provenance(t0, t1)}
+    if warnings.lines:
+        out["warnings"] = warnings.lines
+    return out
+
+
+class RunWarnings(logging.Handler):
+    """The warnings the package logs during one graph-mode run of a campaign (e.g. DTAG's or
+    DTAP's idleness estimate that no longer fits the original's int16 payload), kept for
+    the run's state record instead of printed: a worker's log lines reach the campaign's
+    terminal without saying which run they came from (a full reference campaign printed
+    235 of them). A context manager; at most :data:`MAX_LINES` lines, then a count."""
+    MAX_LINES = 20
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self._lines: List[str] = []
+        self._more = 0
+        self._thread = threading.get_ident()
+
+    @property
+    def lines(self) -> List[str]:
+        return self._lines + ([f"... and {self._more} more"] if self._more else [])
+
+    def emit(self, record):
+        if record.thread != self._thread:       # another run of a multi-threaded worker
+            return
+        if len(self._lines) < self.MAX_LINES:
+            self._lines.append(f"{record.levelname}: {record.getMessage()}")
+        else:
+            self._more += 1
+
+    def __enter__(self):
+        log = logging.getLogger(__package__)
+        self._propagate = log.propagate
+        log.addHandler(self)
+        log.propagate = False
+        return self
+
+    def __exit__(self, *exc):
+        log = logging.getLogger(__package__)
+        log.removeHandler(self)
+        log.propagate = self._propagate
+        return False
 
 
 def run_graph_chunk(configs: List[dict]) -> List[dict]:
