@@ -41,10 +41,7 @@ class IdlenessEstimate:
         """:meth:`merge` of a payload already decoded to seconds by :func:`decode_seconds`
         (an array of the estimate's length): the same element-wise minimum, without the
         conversion (the same numbers: the conversion is the same division, done once)."""
-        g = self.values
-        if now > self.t:                # advance(now), inline: once per received message
-            g += now - self.t
-            self.t = now
+        g = self.advance(now)
         np.minimum(g, received, out=g)
 
     def encode(self, now, zero=None):

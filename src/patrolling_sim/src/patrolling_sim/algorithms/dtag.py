@@ -76,10 +76,10 @@ class DTAGreedy(PatrolStrategy):
         u = self.current
         g = self.gi.advance(now)
         g[u] = 0.0
-        nav, origin, excluded, any_left = self._terms(u)
+        excluded, any_left = self._terms(u)[2:]
         if not any_left:
             return u
-        score = self.p["theta_idleness"] * g + nav + origin
+        score = self.utility(u, g)
         score[excluded] = -np.inf
         return int(np.argmax(score))        # first maximum, as the original
 
