@@ -294,6 +294,36 @@ def test_a_runs_warnings_go_to_its_record_not_to_the_terminal(tmp_path, monkeypa
     assert "warnings: 1 run(s) logged warnings" in summary_table(out)
 
 
+def test_overlapping_runs_restore_the_loggers_propagation():
+    """Two runs of a multi-threaded worker, the first ending before the second: the package's
+    logger propagates again once both are done, and each run keeps only its own thread's
+    warnings."""
+    import logging
+    import threading
+    from patrolling_sim.campaign_tasks import RunWarnings
+    log = logging.getLogger("patrolling_sim.algorithms.dta_common")
+    first = RunWarnings().__enter__()
+    got = {}
+
+    def other_run():
+        second = got["second"] = RunWarnings().__enter__()
+        log.warning("second's")
+        got["entered"].set()
+        got["first_done"].wait(60)
+        second.__exit__(None, None, None)
+    got["entered"], got["first_done"] = threading.Event(), threading.Event()
+    th = threading.Thread(target=other_run)
+    th.start()
+    assert got["entered"].wait(60)
+    log.warning("first's")
+    first.__exit__(None, None, None)
+    assert not logging.getLogger("patrolling_sim").propagate     # the second still runs
+    got["first_done"].set()
+    th.join(60)
+    assert logging.getLogger("patrolling_sim").propagate
+    assert first.lines == ["WARNING: first's"] and got["second"].lines == ["WARNING: second's"]
+
+
 def test_runs_with_one_time_stamp_keep_their_files_apart(tmp_path):
     """Runs stored within one second share a prefix: each gets its own suffix, across calls
     (a resumed campaign starts with an empty suffix memory and must not overwrite files)."""

@@ -149,8 +149,8 @@ def summary_table(out: str) -> str:
         lines.append(t.round(2).to_string())
     counts = df["status"].value_counts().to_dict()
     lines.append("status: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
-    if "warnings" in df and (df["warnings"] > 0).any():
-        n = int((df["warnings"] > 0).sum())
+    n = int((df["warnings"] > 0).sum()) if "warnings" in df else 0
+    if n:
         lines.append(f"warnings: {n} run(s) logged warnings (column 'warnings' of runs.csv; "
                      f"the lines are in their state records, {STATE_DIR}/<key>.yaml)")
     return "\n".join(lines)

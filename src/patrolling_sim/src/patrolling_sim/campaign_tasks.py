@@ -220,8 +220,15 @@ class RunWarnings(logging.Handler):
     DTAP's idleness estimate that no longer fits the original's int16 payload), kept for
     the run's state record instead of printed: a worker's log lines reach the campaign's
     terminal without saying which run they came from (a full reference campaign printed
-    235 of them). A context manager; at most :data:`MAX_LINES` lines, then a count."""
+    235 of them). A context manager; at most :data:`MAX_LINES` lines, then a count.
+
+    The package's logger stops propagating while any run of the process is inside one (a
+    worker with several threads runs several at once, ending in any order); the first to
+    enter saves its setting, the last to leave restores it."""
     MAX_LINES = 20
+    _lock = threading.Lock()
+    _active = 0                 # runs inside one, in this process
+    _saved_propagate = True
 
     def __init__(self):
         super().__init__(logging.WARNING)
@@ -243,15 +250,21 @@ class RunWarnings(logging.Handler):
 
     def __enter__(self):
         log = logging.getLogger(__package__)
-        self._propagate = log.propagate
-        log.addHandler(self)
-        log.propagate = False
+        with RunWarnings._lock:
+            if RunWarnings._active == 0:
+                RunWarnings._saved_propagate = log.propagate
+                log.propagate = False
+            RunWarnings._active += 1
+            log.addHandler(self)
         return self
 
     def __exit__(self, *exc):
         log = logging.getLogger(__package__)
-        log.removeHandler(self)
-        log.propagate = self._propagate
+        with RunWarnings._lock:
+            log.removeHandler(self)
+            RunWarnings._active -= 1
+            if RunWarnings._active == 0:
+                log.propagate = RunWarnings._saved_propagate
         return False
 
 
