@@ -13,6 +13,18 @@ for pkg in ("patrolling_sim", "spqrel_nav_lite"):
         sys.path.insert(0, p)
 
 
+# --- the navigation's plan store (spqrel_nav_lite.plan_store) ----------------------------
+# experiments started by the tests keep their navigation functions in a folder of this
+# session, not in the user's ~/.cache; the experiments inherit the variable
+if "PATROLLING_SIM_PLAN_STORE" not in os.environ:
+    import atexit
+    import shutil
+    import tempfile
+    _store = tempfile.mkdtemp(prefix="patrolling_sim_plan_store_")
+    os.environ["PATROLLING_SIM_PLAN_STORE"] = _store
+    atexit.register(shutil.rmtree, _store, ignore_errors=True)
+
+
 # --- processes the tests started in groups of their own (tests/process_guard.py) ---------
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import process_guard  # noqa: E402

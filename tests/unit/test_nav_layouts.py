@@ -96,6 +96,29 @@ def test_shared_layout_has_no_nav_host(tmp_path):
         assert "nav_nodes" not in {a.get("name") for a in inc.iter("arg")}
 
 
+@pytest.mark.parametrize("processes", ["shared", "separate", "pooled:2", "pooled-separate"])
+def test_every_navigation_process_gets_the_plan_store(processes, tmp_path, monkeypatch):
+    monkeypatch.setenv("PATROLLING_SIM_PLAN_STORE", str(tmp_path / "store"))
+    root = launch(tmp_path, processes=processes)
+    hosts = [n for n in root.iter("node") if n.get("type") == "nav_host"]
+    per_robot = {p.get("name"): p.get("value") for p in root.findall("param")
+                 if p.get("name").endswith("/move_base/plan_store")}
+    if hosts:
+        assert all(h.find("param[@name='plan_store']").get("value") == str(tmp_path / "store")
+                   for h in hosts) and not per_robot
+    else:
+        assert per_robot == {f"robot_{i}/move_base/plan_store": str(tmp_path / "store")
+                             for i in range(5)}
+    monkeypatch.setenv("PATROLLING_SIM_PLAN_STORE", "none")
+    root = launch(tmp_path, processes=processes)
+    assert "plan_store" not in ET.tostring(root, encoding="unicode")
+
+
+def test_the_abstract_world_has_no_plan_store(tmp_path, monkeypatch):
+    monkeypatch.setenv("PATROLLING_SIM_PLAN_STORE", str(tmp_path / "store"))
+    assert "plan_store" not in ET.tostring(launch(tmp_path, nav="abstract"), encoding="unicode")
+
+
 @pytest.mark.skipif(shutil.which("roslaunch", path="/usr/bin") is None,
                     reason="roslaunch not installed")
 def test_robot_launch_without_nodes_sets_the_same_parameters():

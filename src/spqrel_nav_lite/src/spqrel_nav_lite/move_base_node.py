@@ -27,6 +27,7 @@ from spqrel_nav_lite.move_base_goal import GoalExecution
 from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world
 from spqrel_nav_lite.particle_filter import LikelihoodField
 from spqrel_nav_lite.planner import GlobalPlanner
+from spqrel_nav_lite.planner_grid import PlannerGrid
 from spqrel_nav_lite.ros_util import get_map, param, pose_of, strip_slash
 
 # scans deserialised straight into numpy arrays (ranges: float32 ndarray, no tuple of floats)
@@ -83,7 +84,14 @@ class MoveBase(GoalExecution):
                                          grid=shared.planner_grid(**grid_args))
             self.field = shared.likelihood_field(1.0)
         else:
-            self.planner = GlobalPlanner(omap, obstacle_margin=margin, **grid_args)
+            # the plan store (spqrel_nav_lite.plan_store): navigation functions computed by
+            # any process on this grid before; a nav_host reads its own ~plan_store instead
+            store = str(self._p("plan_store", "", str) or "") or None
+            store_mb = self._p("plan_store_mb", 4096.0, **NONNEG)
+            grid = PlannerGrid(omap, grid_args["robot_radius"], grid_args["inflation_radius"],
+                               grid_args["resolution"], cache_bytes=grid_args["cache_bytes"],
+                               store_root=store, store_bytes=store_mb * 2**20)
+            self.planner = GlobalPlanner(omap, obstacle_margin=margin, grid=grid)
             self.field = LikelihoodField(omap, max_dist=1.0)
         rospy.loginfo("move_base: planner grid %dx%d at %.3f m, built in %.2f s",
                       self.planner.w, self.planner.h, self.planner.res, time.time() - t0)

@@ -15,7 +15,10 @@ Private parameters: ``~robots`` (robot namespaces, a list or a space-separated s
 ``"robot_0 robot_1"``), ``~localization`` (``AMCL`` | ``fake_localization``, default
 ``AMCL``), ``~map_yaml`` (else ``/map`` or ``static_map``), ``~plan_cache_mb`` (default 128)
 and ``~plan_cache_goals`` (default 0: the cache keeps at least that many navigation functions,
-whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex count).
+whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex count),
+``~plan_store`` (default empty: none; a folder shared with other processes and runs, see
+:mod:`~spqrel_nav_lite.plan_store`; the runner sets it) and ``~plan_store_mb`` (its bound,
+default 4096).
 """
 import re
 
@@ -55,9 +58,12 @@ def main():
         fatal(f"parameter ~robots: {e}")
     cache_mb = param("plan_cache_mb", 128.0, check=lambda v: v >= 0, what="must be >= 0")
     cache_goals = param("plan_cache_goals", 0, int, check=lambda v: v >= 0, what="must be >= 0")
+    store = str(rospy.get_param("~plan_store", "") or "") or None
+    store_mb = param("plan_store_mb", 4096.0, check=lambda v: v >= 0, what="must be >= 0")
     from .move_base_node import MoveBase
     from .shared import SharedMaps
-    shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals)
+    shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals,
+                        store_root=store, store_bytes=store_mb * 2**20)
     if mode == "AMCL":
         from .amcl_node import Amcl, log_update_times
     else:
@@ -76,10 +82,10 @@ def main():
     rospy.loginfo("nav_host: %s + move_base of %d robots (%s) in one process", mode,
                   len(robots), " ".join(robots))
     rospy.spin()
-    fields, grids, cached, hits, misses = shared.stats()
+    fields, grids, cached, hits, misses, loads, saves = shared.stats()
     rospy.loginfo("nav_host: %d likelihood field(s), %d planner grid(s), %d navigation "
-                  "functions cached, %d cache hits, %d misses", fields, grids, cached, hits,
-                  misses)
+                  "functions cached, %d cache hits, %d misses, %d read from the plan store, "
+                  "%d written to it", fields, grids, cached, hits, misses, loads, saves)
     if mode == "AMCL":
         for _, loc in hosted:
             log_update_times(loc)

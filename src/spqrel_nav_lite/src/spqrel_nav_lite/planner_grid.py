@@ -198,7 +198,8 @@ class PlannerGrid:
     :mod:`spqrel_nav_lite.planner` for what they mean)."""
 
     def __init__(self, omap, robot_radius=0.225, inflation_radius=0.66, resolution=0.1,
-                 cost_scaling=3.0, cost_weight=4.0, cache_bytes=32 << 20, cache_min_entries=0):
+                 cost_scaling=3.0, cost_weight=4.0, cache_bytes=32 << 20, cache_min_entries=0,
+                 store_root=None, store_bytes=4 << 30):
         if resolution <= 0:
             raise ValueError(f"planner resolution must be positive, got {resolution}")
         self.map = omap
@@ -222,6 +223,17 @@ class PlannerGrid:
         # source cell of every stored entry of free_graph (to block edges by cell)
         self.graph_rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(self.free_graph.indptr))
         self.cache = NavFunctionCache(n, cache_bytes, cache_min_entries)
+        self.store = None
+        if store_root:
+            from .plan_store import PlanStore, graph_key
+            desc = (f"map {omap.yaml_path or '(from a topic)'}\n"
+                    f"grid {self.w} x {self.h} cells of {self.res} m, origin {self.origin}\n"
+                    f"robot_radius {self.robot_radius}, inflation_radius "
+                    f"{self.inflation_radius}, cost_scaling {cost_scaling}, cost_weight "
+                    f"{cost_weight}\n")
+            self.store = PlanStore(store_root, graph_key(self.w, self.h, self.res, self.origin,
+                                                         self.free_graph),
+                                   n, store_bytes, description=desc)
 
     def _edges(self):
         """(src, dst, weight) of every edge of the cell graph, once (one direction)."""
@@ -248,14 +260,23 @@ class PlannerGrid:
 
     def free_navigation_function(self, g):
         """(dist, pred, searched) of the obstacle-free Dijkstra from cell ``g``: from the
-        cache when any robot sharing this grid searched it before (``searched`` False)."""
+        cache when any robot sharing this grid searched it before, or from the plan store
+        (:mod:`~spqrel_nav_lite.plan_store`) when any process did (``searched`` False). The
+        arrays are shared: callers must not write into them (stored ones are read-only)."""
         field = self.cache.get(g)
         if field is not None:
             return field[0], field[1], False
+        if self.store is not None:
+            field = self.store.load(g)
+            if field is not None:
+                self.cache.put(g, field)
+                return field[0], field[1], False
         from scipy.sparse.csgraph import dijkstra
         dist, pred = dijkstra(self.free_graph, directed=True, indices=g,
                               return_predecessors=True)
         field = (dist.astype(np.float32), pred.astype(np.int32))
+        if self.store is not None:
+            self.store.save(g, *field)
         self.cache.put(g, field)
         return field[0], field[1], True
 

@@ -14,7 +14,9 @@ plain ``roslaunch``. The file composes:
 - per robot ``launch/robot.launch`` (localisation + navigation in namespace ``robot_i``; with
   ``processes: shared`` both in one ``robot_nav`` process; with ``pooled[:K]`` and
   ``pooled-separate[:K]`` only the robot's parameters, its navigation being hosted by one of
-  K ``nav_host`` processes, see :func:`_nav_hosts`),
+  K ``nav_host`` processes, see :func:`_nav_hosts`); every navigation process gets the plan
+  store's folder (``plan_store``: ``$PATROLLING_SIM_PLAN_STORE``, default
+  ``~/.cache/patrolling_sim/plan_store``, ``none`` for none; docs/navigation.md),
 - the monitor and the N agents (``processes: shared`` or ``pooled``: one ``patrol_agents``
   process hosting all of them; ``separate`` or ``pooled-separate``: one ``patrol_agent`` node
   per robot, as the original),
@@ -26,6 +28,8 @@ one ``abstract_world`` node (straight-line motion, see :func:`_abstract_world`).
 import math
 import os
 from xml.sax.saxutils import quoteattr
+
+from spqrel_nav_lite import plan_store
 
 from .. import paths
 from ..graph import load_graph
@@ -57,11 +61,13 @@ def _abstract_world(a, cfg, n):
     a("")
 
 
-def _nav_hosts(a, cfg, n, hosts, yaml_path, n_vertices):
+def _nav_hosts(a, cfg, n, hosts, yaml_path, n_vertices, store):
     """``hosts`` nav_host processes, each hosting the localiser + move_base of a contiguous
     block of robots (sizes differ by at most one). They run in namespace ``/nav_pool`` whose
     ``actionlib_status_frequency`` matches the per-robot nodes' (1 Hz); their plan caches
-    hold a navigation function for every vertex of the patrol graph (the patrol goals)."""
+    hold a navigation function for every vertex of the patrol graph (the patrol goals), read
+    from and written to the plan store ``store`` (None: none) shared with the other processes
+    and later runs."""
     a("  <!-- navigation: localiser + move_base of every robot in nav_host processes (each")
     a("       robot keeps its robot_i topics, move_base action, services, frames, params) -->")
     a('  <group ns="nav_pool">')
@@ -74,6 +80,8 @@ def _nav_hosts(a, cfg, n, hosts, yaml_path, n_vertices):
         a(f"      <param name=\"localization\" value={_attr(cfg.loc)}/>")
         a(f"      <param name=\"map_yaml\" value={_attr(yaml_path)}/>")
         a(f"      <param name=\"plan_cache_goals\" value=\"{int(n_vertices)}\"/>")
+        if store:
+            a(f"      <param name=\"plan_store\" value={_attr(store)}/>")
         a("    </node>")
     a("  </group>")
     a("")
@@ -121,6 +129,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
     """
     root = paths.data_root()
     agents, nav_mode, hosts = process_layout(cfg.processes, cfg.robots)
+    # navigation functions shared by the navigation processes and kept for later runs
+    # (spqrel_nav_lite.plan_store; $PATROLLING_SIM_PLAN_STORE=none turns it off)
+    store = plan_store.default_root()
     yaml_path, graph_path = (os.path.abspath(p) for p in paths.map_files(cfg.map))
     n = cfg.robots
     poses = " ".join(f"{x:.4f} {y:.4f} {yaw:.4f}" for x, y in positions)
@@ -178,9 +189,11 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
             if nav_mode == "pooled":
                 a('    <arg name="nav_nodes" value="false"/>')
             a("  </include>")
+            if store and nav_mode != "pooled" and cfg.nav != "ros":
+                a(f'  <param name="robot_{i}/move_base/plan_store" value={_attr(store)}/>')
         a("")
         if nav_mode == "pooled" and cfg.nav != "ros":
-            _nav_hosts(a, cfg, n, hosts, yaml_path, len(graph_xy.split()) // 2)
+            _nav_hosts(a, cfg, n, hosts, yaml_path, len(graph_xy.split()) // 2, store)
     a("  <!-- monitor: ends the run (timeout / cycles / dead robot / abort); required, so")
     a("       roslaunch shuts everything down when it exits after writing its files -->")
     a('  <node pkg="patrolling_sim" type="monitor" name="monitor" required="true" output="log"')
