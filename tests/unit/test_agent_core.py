@@ -301,3 +301,17 @@ def test_redirect_while_deciding_is_the_decision():
     core.redirect(4)
     assert kinds(log)[-4:] == ["publish11", "share", "publish40", "goal"]
     assert log[-1][2] == 4
+
+
+def test_the_strategy_prepares_once_before_the_first_announcement():
+    core, world, log = make()
+    core.strategy.prepare = lambda v: log.append(("prepare", world.t, v))
+    world.advance(3.0)
+    core.ready()
+    core.ready()                                # a second call changes nothing
+    world.advance(2.5)
+    assert kinds(log) == ["prepare", "publish10", "publish10"]
+    assert log[0] == ("prepare", 3.0, 0)
+    core.on_results(GO)
+    world.advance(1.0)
+    assert kinds(log).count("prepare") == 1 and "start" in kinds(log)

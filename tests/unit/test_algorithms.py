@@ -384,3 +384,28 @@ def test_dtap_task_set_and_centre_follow_the_bids():
             assert s.center == want
         else:
             assert s.center == old_center
+
+
+@pytest.mark.parametrize("alg", ["CGG", "CGG_TSP", "MSP", "MSP_BAL"])
+def test_route_followers_build_their_route_before_go(alg, monkeypatch):
+    """prepare() (called when the robot becomes ready, before GO) builds the route, as the
+    original's agents do in their init; start() at GO only uses it. In ROS mode the clock
+    runs while an agent computes: a route built at GO kept CGG_TSP's robots on their start
+    vertices for 12 simulated seconds at x30 (grid, 4 robots)."""
+    s, d = make(alg, rid=1, n=4, params={"start_vertices": [0, 13, 20, 11]})
+    reference, _ = make(alg, rid=1, n=4, params={"start_vertices": [0, 13, 20, 11]})
+    s.prepare(13)
+    calls = []
+    monkeypatch.setattr(type(s), "build_route", lambda self, v: calls.append(v))
+    s.start(13, 0.0)
+    monkeypatch.undo()
+    assert calls == []
+    reference.start(13, 0.0)                    # without prepare: built at start, the same
+    assert s.route == reference.route
+    assert [s.next_vertex(0.0) for _ in range(5)] == [reference.next_vertex(0.0)
+                                                      for _ in range(5)]
+    # prepared for another vertex (never in practice): built again at start
+    other, _ = make(alg, rid=1, n=4, params={"start_vertices": [0, 13, 20, 11]})
+    other.prepare(0)
+    other.start(13, 0.0)
+    assert other.route == reference.route

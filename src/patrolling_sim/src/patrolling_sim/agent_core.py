@@ -168,8 +168,10 @@ class PatrolAgentCore(ScenarioMixin, Driver):
 
     # -- events from the driver ----------------------------------------------------------
     def ready(self) -> None:
-        """The navigation server is up: announce ``[id,10,1]`` now and every 2 s until GO."""
+        """The navigation server is up: let the strategy prepare (its route, before GO), then
+        announce ``[id,10,1]`` now and every 2 s until GO."""
         if self.phase == "init":
+            self.strategy.prepare(self.start_vertex)
             self.phase = "ready"
             self._announce()
 

@@ -121,6 +121,15 @@ class PatrolStrategy:
                                                      self.TEAMMATE_TIMEOUT))
 
     # -- life cycle -------------------------------------------------------------------
+    def prepare(self, start_vertex: int) -> None:
+        """Called once before GO, when the robot becomes ready and before it announces
+        itself: the place for set-up work that depends only on the graph, the parameters and
+        the start vertex (a route, a partition), as the original's agents do it in their
+        init, before they wait for GO. In ROS mode the clock runs while an agent computes,
+        so work done in :meth:`start` instead would hold the robot on its start vertex for
+        simulated time (at x30, 0.1 s of CPU costs 3 s). Must not draw from ``rng`` (graph
+        mode and ROS mode call it at different moments). Default: nothing."""
+
     def start(self, start_vertex: int, now: float) -> None:
         """Called once at GO, before the first decision. Default, as the original's agent:
         every vertex was last visited at time 0 (the clock's zero), the start vertex at 0.1

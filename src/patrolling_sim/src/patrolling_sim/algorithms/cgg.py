@@ -38,10 +38,21 @@ class RouteFollower(PatrolStrategy):
     """Base for strategies that loop over a fixed closed route (CGG, MSP)."""
 
     route = None                        # closed walk, set by subclasses in start()
+    _prepared = None                    # (start vertex, route built for it before GO)
+
+    def prepare(self, start_vertex):
+        """Build the route before GO (the original's agents build it in their init)."""
+        self._prepared = (start_vertex, self.build_route(start_vertex))
+
+    def prepared_route(self, start_vertex):
+        """The route :meth:`prepare` built for ``start_vertex``, else built now."""
+        if self._prepared is not None and self._prepared[0] == start_vertex:
+            return self._prepared[1]
+        return self.build_route(start_vertex)
 
     def start(self, start_vertex, now):
         super().start(start_vertex, now)
-        self.route = rotate_to(self.build_route(start_vertex), start_vertex)
+        self.route = rotate_to(self.prepared_route(start_vertex), start_vertex)
         self.k = 0                      # index in the route of the vertex last reached
 
     def build_route(self, start_vertex):

@@ -82,12 +82,15 @@ class MultilevelSubgraphPatrolling(RouteFollower):
     there) the route of ``MSP_BAL`` is used instead, from the robot's own vertex (logged)."""
     name = "MSP"
 
+    def build_route(self, start_vertex):
+        """(route, source) of :func:`msp_route` for this robot."""
+        p = self.ctx.params
+        return msp_route(self.graph, self.ctx.map_name, self.ctx.team_size, self.id,
+                         start_vertices=p.get("start_vertices"), route_file=p.get("msp_route"))
+
     def start(self, start_vertex, now):
         PatrolStrategy.start(self, start_vertex, now)
-        p = self.ctx.params
-        route, self.route_source = msp_route(
-            self.graph, self.ctx.map_name, self.ctx.team_size, self.id,
-            start_vertices=p.get("start_vertices"), route_file=p.get("msp_route"))
+        route, self.route_source = self.prepared_route(start_vertex)
         if self.route_source == "computed":
             log.info("MSP: no valid route file for %s with %d robots; robot %d follows the "
                      "computed balanced partition (as MSP_BAL)", self.ctx.map_name,
