@@ -125,7 +125,8 @@ def test_generated_launch(tmp_path):
                                         .validate(), pos, str(tmp_path / "20260101_000001")))
     agents = [n for n in sep.iter("node") if n.get("type") == "patrol_agent"]
     assert [a.get("name") for a in agents] == [f"patrol_robot{i}" for i in range(4)]
-    assert [a.find("param[@name='seed']").get("value") for a in agents] == ["0", "1", "2", "3"]
+    # the agents' seeds of graph mode (agent_core.agent_seed): same draws in both modes
+    assert [a.find("param[@name='seed']").get("value") for a in agents] == ["1", "2", "3", "4"]
     assert all({a.get("name"): a.get("value") for a in r.iter("arg")}["combined"] == "false"
                for r in sep.iter("include") if r.get("file").endswith("robot.launch"))
     with pytest.raises(PatrolInputError, match="argument --processes: must be one of"):
@@ -203,3 +204,28 @@ def test_batch_exit_status_of_a_child_killed_by_a_signal():
     from patrolling_sim.runner.batch import exit_status
     assert exit_status(-2) == 130 and exit_status(-15) == 143      # as a shell reports them
     assert exit_status(0) == 0 and exit_status(3) == 3 and exit_status(None) is None
+
+
+@pytest.mark.parametrize("processes", ["shared", "separate"])
+def test_ros_agents_get_graph_modes_seeds(processes, tmp_path, monkeypatch):
+    """With the same run seed a robot's agent is seeded alike in ROS mode and in graph mode
+    (agent_core.agent_seed), so its strategy draws the same numbers (RAND's walk, the start
+    delay) in both modes."""
+    from patrolling_sim import graph_sim
+    from patrolling_sim.agent_core import agent_seed
+    cfg = base(results_dir=str(tmp_path), processes=processes, seed=3).validate()
+    root = ET.fromstring(generate_launch(cfg, cfg.start_positions(), str(tmp_path / "p")))
+    if processes == "shared":
+        (node,) = [n for n in root.iter("node") if n.get("type") == "patrol_agents"]
+        # patrol_agents gives agent i the node's ~seed + i
+        ros = [int(node.find("param[@name='seed']").get("value")) + i for i in range(4)]
+    else:
+        ros = [int(n.find("param[@name='seed']").get("value"))
+               for n in root.iter("node") if n.get("type") == "patrol_agent"]
+    seen = []
+    real = graph_sim.build_agent
+    monkeypatch.setattr(graph_sim, "build_agent",
+                        lambda *a, **kw: seen.append(kw["seed"]) or real(*a, **kw))
+    graph_sim.GraphSimulator(graph_sim.GraphSimConfig(map="grid", robots=4, alg="RAND", seed=3,
+                                                      duration=5.0)).run(write=False)
+    assert ros == seen == [agent_seed(3, i) for i in range(4)] == [3001, 3002, 3003, 3004]

@@ -386,6 +386,13 @@ class PatrolAgentCore(ScenarioMixin, Driver):
         self._later(INTERFERENCE_PAUSE, lambda: self._resend(seq))
 
 
+def agent_seed(run_seed: int, robot_id: int) -> int:
+    """The seed of robot ``robot_id``'s agent in a run seeded ``run_seed``, the same in graph
+    mode and in ROS mode (the runner hands it to each agent): with the same run seed a
+    robot's strategy draws the same numbers and waits the same start delay in both modes."""
+    return int(run_seed) * 1000 + int(robot_id) + 1
+
+
 def build_agent(effects: Effects, graph, robot_id: int, team_size: int, map_name: str,
                 algorithm: str, start_vertex: int, start_position=None, seed: int = 0,
                 params=None, goal_wait: float = 0.0, comm_delay: float = 0.0,

@@ -32,7 +32,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from . import paths, run_status
-from .agent_core import FIRST_ALGORITHM_TYPE, GO, MONITOR_ID, build_agent
+from .agent_core import FIRST_ALGORITHM_TYPE, GO, MONITOR_ID, agent_seed, build_agent
 from .algorithms.base import MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from .errors import PatrolInputError
 from .graph_config import (FEEDBACK_PERIOD, MIN_TRIP, TIMERESULTS_PERIOD,  # noqa: F401
@@ -213,7 +213,7 @@ class GraphSimulator(FeedbackTicks):
         params = dict(cfg.params)
         params.setdefault("start_vertices", self.start_vertices)
         robot.core = build_agent(robot, self.g, robot.id, cfg.robots, self.map_name, cfg.alg,
-                                 sv, robot.xy, seed=cfg.seed * 1000 + robot.id + 1,
+                                 sv, robot.xy, seed=agent_seed(cfg.seed, robot.id),
                                  params=params, goal_wait=cfg.gwait,
                                  comm_delay=cfg.comm_delay, loss=cfg.loss, comm=cfg.comm,
                                  occupancy=self.occupancy, positions=self.true_position,

@@ -32,6 +32,7 @@ from xml.sax.saxutils import quoteattr
 from spqrel_nav_lite import plan_store
 
 from .. import paths
+from ..agent_core import agent_seed
 from ..graph import load_graph
 from .config import process_layout
 
@@ -215,7 +216,8 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
         a(f'    <param name="algorithm" value={_attr(cfg.alg)}/>')
         a(f'    <param name="map" value={_attr(cfg.map)}/>')
         a(f'    <param name="team_size" value="{n}"/>')
-        a(f'    <param name="seed" value="{int(cfg.seed) * 1000}"/>')
+        # agent i of patrol_agents gets ~seed + i: agent_seed(seed, i), as in graph mode
+        a(f'    <param name="seed" value="{agent_seed(cfg.seed, 0)}"/>')
         a("  </node>")
     else:
         for i in range(n):
@@ -224,7 +226,7 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
             a(f'    <param name="algorithm" value={_attr(cfg.alg)}/>')
             a(f'    <param name="map" value={_attr(cfg.map)}/>')
             a(f'    <param name="team_size" value="{n}"/>')
-            a(f'    <param name="seed" value="{int(cfg.seed) * 1000 + i}"/>')
+            a(f'    <param name="seed" value="{agent_seed(cfg.seed, i)}"/>')
             a("  </node>")
     if cfg.rviz:
         a("")
