@@ -409,3 +409,12 @@ def test_route_followers_build_their_route_before_go(alg, monkeypatch):
     other.prepare(0)
     other.start(13, 0.0)
     assert other.route == reference.route
+
+
+@pytest.mark.parametrize("alg", ["DTAG", "DTAP"])
+def test_dta_strategies_compute_their_path_table_before_go(alg):
+    g = PatrolGraph.load(paths.map_files("cumberland")[1])     # a graph of its own
+    s = create(alg, StrategyContext(g, 0, 2, "cumberland", random.Random(0), FakeDriver(), {}))
+    assert g._dist is None
+    s.prepare(3)
+    assert g._dist is not None
