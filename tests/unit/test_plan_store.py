@@ -85,7 +85,7 @@ def test_another_graph_gets_another_folder(tmp_path):
         assert "robot_radius 0.225" in f.read()
 
 
-@pytest.mark.parametrize("damage", ["truncate", "garbage", "shape"])
+@pytest.mark.parametrize("damage", ["truncate", "empty", "garbage", "shape"])
 def test_a_damaged_file_is_searched_again_and_replaced(tmp_path, damage, caplog):
     m = corridors()
     a = PlannerGrid(m, store_root=str(tmp_path))
@@ -94,6 +94,8 @@ def test_a_damaged_file_is_searched_again_and_replaced(tmp_path, damage, caplog)
     if damage == "truncate":
         with open(path, "r+b") as f:
             f.truncate(os.path.getsize(path) // 2)
+    elif damage == "empty":                      # what a crash can leave on ext4
+        open(path, "wb").close()
     elif damage == "garbage":
         with open(path, "wb") as f:
             f.write(b"not a numpy file")
