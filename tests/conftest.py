@@ -34,7 +34,7 @@ import process_guard  # noqa: E402
 ROS_LAST = ("test_abstract_fidelity.py",)
 #: s between SIGTERM and SIGKILL to the groups tests left running (process_guard), in a plain
 #: session and in a pytest-xdist worker
-GRACE, WORKER_GRACE = 15.0, 4.0
+GRACE, WORKER_GRACE = 15.0, 1.0
 
 
 def _sigterm_as_ctrl_c(signum, frame):
@@ -64,8 +64,10 @@ def pytest_collection_modifyitems(config, items):
 
 
 def pytest_sessionfinish(session, exitstatus):
-    # a pytest-xdist worker: the controller's Ctrl-C or SIGTERM interrupts it through execnet,
-    # which kills it 10 s later; SIGKILL the groups left before that
+    # a pytest-xdist worker: on the controller's Ctrl-C or SIGTERM, execnet in the worker
+    # waits 5 s for the running test, then sends the worker SIGINT; the controller kills the
+    # worker 10 s after its request. So the groups left get SIGTERM and, 1 s later, SIGKILL,
+    # well inside those 5 s (with 4 s a loaded CI machine let the kill come first)
     worker = hasattr(session.config, "workerinput")
     stopped = process_guard.stop_leftovers(grace=WORKER_GRACE if worker else GRACE)
     if stopped:
