@@ -37,7 +37,8 @@ from spqrel_nav_lite.planner_grid import PlannerGrid  # noqa: E402
 
 
 def goal_cells(omap, graph_path):
-    """Goal cell of every patrol vertex, as move_base's planner checks it (0.4 m tolerance)."""
+    """(goal cell of every patrol vertex, as move_base's planner checks it (0.4 m tolerance),
+    the planner grid's width and height)."""
     G = load_graph(graph_path, warn=False)
     probe = GlobalPlanner(omap)
     cells = []
@@ -45,7 +46,7 @@ def goal_cells(omap, graph_path):
         x, y = G.nodes[v]["pos"]
         i, j = probe.check_goal(x, y, 0.4)
         cells.append(j * probe.w + i)
-    return cells
+    return cells, probe.w, probe.h
 
 
 def one_pass(omap, cells, store):
@@ -73,7 +74,8 @@ def main():
     for name in a.maps:
         yaml_path, graph_path = paths.map_files(name)
         omap = load_map(yaml_path)
-        cells = sorted(set(goal_cells(omap, graph_path)))
+        cells, w, h = goal_cells(omap, graph_path)
+        cells = sorted(set(cells))
         best = {}
         same = True
         for _ in range(a.repeat):
@@ -92,8 +94,7 @@ def main():
             for k, v in (("build", build), ("search", search), ("cold", cold), ("warm", warm)):
                 best[k] = min(best.get(k, v), v)
         n = len(cells)
-        g = PlannerGrid(omap)
-        print(f"| {name} | {n} | {g.w} x {g.h} | {best['build']:.2f} | "
+        print(f"| {name} | {n} | {w} x {h} | {best['build']:.2f} | "
               f"{best['search'] / n * 1000:.1f} ms / {best['search']:.2f} | {best['cold']:.2f} | "
               f"{best['warm'] / n * 1000:.2f} ms / {best['warm']:.3f} | {size / 2**20:.0f} | "
               f"{'yes' if same else 'NO'} |", flush=True)

@@ -86,11 +86,9 @@ class MoveBase(GoalExecution):
         else:
             # the plan store (spqrel_nav_lite.plan_store): navigation functions computed by
             # any process on this grid before; a nav_host reads its own ~plan_store instead
-            store = str(self._p("plan_store", "", str) or "") or None
-            store_mb = self._p("plan_store_mb", 4096.0, **NONNEG)
-            grid = PlannerGrid(omap, grid_args["robot_radius"], grid_args["inflation_radius"],
-                               grid_args["resolution"], cache_bytes=grid_args["cache_bytes"],
-                               store_root=store, store_bytes=store_mb * 2**20)
+            grid = PlannerGrid(omap, store_root=self._p("plan_store", "", str) or None,
+                               store_bytes=self._p("plan_store_mb", 4096.0, **NONNEG) * 2**20,
+                               **grid_args)
             self.planner = GlobalPlanner(omap, obstacle_margin=margin, grid=grid)
             self.field = LikelihoodField(omap, max_dist=1.0)
         rospy.loginfo("move_base: planner grid %dx%d at %.3f m, built in %.2f s",

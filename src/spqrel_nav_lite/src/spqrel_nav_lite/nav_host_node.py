@@ -58,7 +58,7 @@ def main():
         fatal(f"parameter ~robots: {e}")
     cache_mb = param("plan_cache_mb", 128.0, check=lambda v: v >= 0, what="must be >= 0")
     cache_goals = param("plan_cache_goals", 0, int, check=lambda v: v >= 0, what="must be >= 0")
-    store = str(rospy.get_param("~plan_store", "") or "") or None
+    store = param("plan_store", "", str) or None
     store_mb = param("plan_store_mb", 4096.0, check=lambda v: v >= 0, what="must be >= 0")
     from .move_base_node import MoveBase
     from .shared import SharedMaps

@@ -83,14 +83,15 @@ class MultilevelSubgraphPatrolling(RouteFollower):
     name = "MSP"
 
     def build_route(self, start_vertex):
-        """(route, source) of :func:`msp_route` for this robot."""
         p = self.ctx.params
-        return msp_route(self.graph, self.ctx.map_name, self.ctx.team_size, self.id,
-                         start_vertices=p.get("start_vertices"), route_file=p.get("msp_route"))
+        route, self.route_source = msp_route(
+            self.graph, self.ctx.map_name, self.ctx.team_size, self.id,
+            start_vertices=p.get("start_vertices"), route_file=p.get("msp_route"))
+        return route
 
     def start(self, start_vertex, now):
         PatrolStrategy.start(self, start_vertex, now)
-        route, self.route_source = self.prepared_route(start_vertex)
+        route = self.prepared_route(start_vertex)
         if self.route_source == "computed":
             log.info("MSP: no valid route file for %s with %d robots; robot %d follows the "
                      "computed balanced partition (as MSP_BAL)", self.ctx.map_name,
