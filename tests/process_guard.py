@@ -90,9 +90,28 @@ def stop_groups(groups: Dict[int, int], grace: float = 15.0) -> Dict[int, List[i
         end = time.monotonic() + wait
         while time.monotonic() < end and any(members(g, groups[g]) for g in found):
             time.sleep(0.05)
-    signal_and_wait(signal.SIGTERM, grace)
-    signal_and_wait(signal.SIGKILL, KILL_WAIT)
+    try:
+        signal_and_wait(signal.SIGTERM, grace)
+    except KeyboardInterrupt:
+        # a second interrupt (Ctrl-C again, or a pytest-xdist worker's SIGINT from execnet
+        # while its session finishes) cuts the grace short: SIGKILL now, not never
+        pass
+    previous = _ignore_sigint()
+    try:
+        signal_and_wait(signal.SIGKILL, KILL_WAIT)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
     return found
+
+
+def _ignore_sigint():
+    """Ignore SIGINT (in the main thread only; elsewhere it cannot arrive as an exception)
+    while the SIGKILLs go out; returns the handler to restore, or None."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def stop_leftovers(grace: float = 15.0) -> Dict[int, List[int]]:

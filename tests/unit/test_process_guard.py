@@ -119,3 +119,18 @@ def test_sigterm_to_an_xdist_session_stops_what_its_workers_started(tmp_path):
             p.wait()
         if sleeper is not None and process_guard.members(sleeper):
             os.killpg(sleeper, signal.SIGKILL)
+
+
+def test_an_interrupt_during_the_grace_goes_straight_to_sigkill():
+    """A second Ctrl-C (or execnet's SIGINT to a finishing xdist worker) while the guard waits
+    for SIGTERM to work must not leave the group running: it cuts the grace short."""
+    import threading
+    p = _spawn("trap '' TERM; sleep 300 & wait")
+    process_guard._started.pop(p.pid, None)
+    start = proc_stat(p.pid).starttime
+    _wait_members(p.pid, 2)
+    threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+    stopped = process_guard.stop_groups({p.pid: start}, grace=60)
+    p.wait()
+    assert p.pid in stopped and process_guard.members(p.pid) == []
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
