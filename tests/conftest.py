@@ -30,7 +30,11 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import process_guard  # noqa: E402
 
 
-#: ROS test modules run after the others (see pytest_collection_modifyitems)
+#: ROS test modules of the second ROS group (see pytest_collection_modifyitems); every other
+#: module under tests/ros is in the first
+ROS_SECOND = ("test_experiments.py", "test_scenarios_ros.py", "test_extracted_map.py",
+              "test_rviz.py", "test_campaign_ros.py")
+#: ROS test modules that run last, at the end of the second ROS group
 ROS_LAST = ("test_abstract_fidelity.py",)
 #: s between SIGTERM and SIGKILL to the groups tests left running (process_guard), in a plain
 #: session and in a pytest-xdist worker
@@ -50,17 +54,32 @@ def pytest_configure(config):
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Two groups for ``make test``'s two workers (``-n 2 --dist loadgroup``): the ROS tests
-    run one after another on one worker, as they always did (each starts its own master, and
-    some a whole experiment), and the unit tests on the other, beside them; a ROS test leaves
-    most of the second core idle (docs/BENCHMARKS.md, "Setup and test suite"). Without
-    xdist the marks do nothing. The ROS modules of :data:`ROS_LAST` run last, when the unit
-    tests are done: they make several experiments at a time and take most of both cores."""
+    """Three groups for ``make test``'s two workers (``-n 2 --dist loadgroup``), in this
+    order: the unit tests, the first ROS group, the second ROS group. pytest-xdist gives the
+    first two groups one worker each and the third to the worker that runs out of work first:
+    the unit tests' worker (about 300 s of unit tests against 800 s of the first ROS group).
+    So two ROS tests run at a time for most of the session (each starts its own master on a
+    free port; a ROS test uses about half a core to one core, docs/BENCHMARKS.md "Setup and
+    test suite"), and the tests within a group one after another. The modules of
+    :data:`ROS_LAST` end the second group: they make several experiments at a time and take
+    most of both cores, by then mostly alone. Without xdist the marks do nothing; the order
+    stays (unit tests first)."""
     ros = os.path.join(ROOT, "tests", "ros") + os.sep
+    rank = {"unit": 0, "ros1": 1, "ros2": 2}
+
+    def group_of(item):
+        path = str(item.fspath)
+        if not path.startswith(ros):
+            return "unit"
+        name = os.path.basename(path)
+        return "ros2" if name in ROS_SECOND or name in ROS_LAST else "ros1"
+
+    groups = {}
     for item in items:
-        group = "ros" if str(item.fspath).startswith(ros) else "unit"
-        item.add_marker(pytest.mark.xdist_group(group))
-    items.sort(key=lambda item: os.path.basename(str(item.fspath)) in ROS_LAST)   # stable
+        groups[item.nodeid] = g = group_of(item)
+        item.add_marker(pytest.mark.xdist_group(g))
+    items.sort(key=lambda item: (rank[groups[item.nodeid]],                  # stable
+                                 os.path.basename(str(item.fspath)) in ROS_LAST))
 
 
 def pytest_sessionfinish(session, exitstatus):
