@@ -167,7 +167,9 @@ class Amcl:
             self.update_times.append(time.perf_counter() - t0)
             self.correction = compose(est, inverse(odom))
             self.publish_pose(est, cov, stamp)
-        if self.correction is not None and self.tf_broadcast:
+        # /tf is not latched: nothing to build when no one subscribes (fake_localization too)
+        if self.correction is not None and self.tf_broadcast and \
+                self.tf.pub_tf.get_num_connections():
             self.tf.sendTransform(transform_msg(
                 self.correction, stamp + rospy.Duration(self.transform_tolerance),
                 self.global_frame, self.odom_frame))

@@ -102,7 +102,9 @@ class MoveBase(GoalExecution):
         self.v = self.w = 0.0
         self.robot_ns = r = robot_ns
         self.cmd_pub = rospy.Publisher(r + "cmd_vel", Twist, queue_size=1)
-        self.plan_pub = rospy.Publisher(ns + "plan", Path, queue_size=1, latch=True)
+        self.last_path = None
+        self.plan_pub = rospy.Publisher(ns + "plan", Path, queue_size=1, latch=True,
+                                        subscriber_listener=_PlanOnSubscribe(self))
         rospy.Subscriber(r + "odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
         if subscribe_pose:
             rospy.Subscriber(r + "amcl_pose", PoseWithCovarianceStamped, self.on_loc,
@@ -226,6 +228,15 @@ class MoveBase(GoalExecution):
         return near, pts[near3 & strange]
 
     def publish_plan(self, path):
+        """``path`` on ``~plan`` (latched), built only while someone subscribes: a Path of a
+        few hundred PoseStamped costs milliseconds to build, and in a run usually no one
+        listens (rviz does). A subscriber that comes later gets the latest plan at once
+        (:class:`_PlanOnSubscribe`), as the latch would have given it."""
+        self.last_path = path
+        if self.plan_pub.get_num_connections():
+            self.plan_pub.publish(self.plan_msg(path))
+
+    def plan_msg(self, path):
         msg = Path()
         msg.header.stamp = rospy.Time.now()
         msg.header.frame_id = self.global_frame
@@ -235,7 +246,7 @@ class MoveBase(GoalExecution):
             ps.pose.position.x, ps.pose.position.y = float(x), float(y)
             ps.pose.orientation.w = 1.0
             msg.poses.append(ps)
-        self.plan_pub.publish(msg)
+        return msg
 
     def make_plan(self, pose, goal, with_obstacles=True, refresh=True):
         """Plan from the navigation function. ``refresh``: first load the current temporary
@@ -249,6 +260,22 @@ class MoveBase(GoalExecution):
         self.plans += 1
         self.publish_plan(path)
         return path
+
+
+class _PlanOnSubscribe(rospy.SubscribeListener):
+    """A new subscriber of ``~plan`` gets the latest plan (plans made while no one listened
+    were not built). rospy calls this from its connection thread before it sends the latched
+    message, and not under the publisher's lock, so publishing here is safe: the new
+    subscriber may get the plan twice, never an outdated one after it."""
+
+    def __init__(self, move_base):
+        super().__init__()
+        self.move_base = move_base
+
+    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
+        path = self.move_base.last_path
+        if path is not None:
+            self.move_base.plan_pub.publish(self.move_base.plan_msg(path))
 
 
 def main():
