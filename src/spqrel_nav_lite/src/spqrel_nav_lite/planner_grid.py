@@ -192,6 +192,11 @@ class NavFunctionCache:
         with self._lock:
             return sum(d.nbytes + p.nbytes for d, p in self._d.values())
 
+    def clear(self):
+        """Forget every cached function (the counters stay)."""
+        with self._lock:
+            self._d.clear()
+
 
 class PlannerGrid:
     """Cost grid and obstacle-free graph of ``omap`` for the given planner parameters (see
