@@ -11,7 +11,7 @@ from patrolling_sim.mapio import OccupancyMap, load_map
 from spqrel_nav_lite.controller import ControllerParams, compute_command, front_clearance
 from spqrel_nav_lite.geometry import PoseHistory, compose, inverse, normalize_angle, relative
 from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world
-from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter
+from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter, first_in_bins
 from spqrel_nav_lite.planner import GlobalPlanner, PlanningError, path_blocked, path_length
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
@@ -228,6 +228,36 @@ def asym_room():
     d = m.data.copy()
     d[60:64, 20:60] = 100                    # a bar that breaks symmetries
     return OccupancyMap(d, m.resolution)
+
+
+def _first_in_bins_by_rows(p):
+    """The reference: unique rows of the bin indices (what resample used before)."""
+    bins = np.column_stack([np.floor(p[:, 0] / 0.5), np.floor(p[:, 1] / 0.5),
+                            np.floor(p[:, 2] / math.radians(10.0))]).astype(np.int64)
+    return np.sort(np.unique(bins, axis=0, return_index=True)[1])
+
+
+@pytest.mark.parametrize("case", ["cluster", "uniform", "negative", "one bin", "one particle"])
+def test_first_in_bins_equals_unique_rows(case):
+    rng = np.random.default_rng(7)
+    if case == "cluster":
+        p = np.column_stack([rng.normal(10, 0.4, 500), rng.normal(5, 0.4, 500),
+                             rng.normal(0, 0.3, 500)])
+    elif case == "uniform":           # global localisation on a large map
+        p = np.column_stack([rng.uniform(0, 300, 5000), rng.uniform(0, 200, 5000),
+                             rng.uniform(-math.pi, math.pi, 5000)])
+    elif case == "negative":
+        p = np.column_stack([rng.normal(-50, 3, 2000), rng.normal(-20, 3, 2000),
+                             rng.uniform(-math.pi, math.pi, 2000)])
+    elif case == "one bin":
+        p = np.column_stack([rng.uniform(1.01, 1.4, 100), rng.uniform(2.01, 2.4, 100),
+                             rng.uniform(0.01, 0.1, 100)])
+    else:
+        p = np.array([[3.3, -1.2, 2.9]])
+    got = first_in_bins(p)
+    assert np.array_equal(got, _first_in_bins_by_rows(p))
+    if case == "one bin":
+        assert list(got) == [0]
 
 
 def test_kld_limit_bounds():
