@@ -106,8 +106,12 @@ def main():
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                       start_new_session=True))
         wait_for_publishers(env, a.robots)
+        # --fair-sched=yes: with valgrind's default (unfair) thread scheduling the busy main
+        # thread starved roscpp's other threads, so the node never acted on the SIGINT below
+        # and was killed before callgrind wrote its counts (2026-11-27, valgrind 3.19)
         node = subprocess.Popen(
-            ["stdbuf", "-oL", "valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+            ["stdbuf", "-oL", "valgrind", "--tool=callgrind", "--fair-sched=yes",
+             f"--callgrind-out-file={out}",
              a.binary, "__name:=stage2d", f"_map:={yaml_path}",
              f"_poses:={start_poses(a.map, a.robots)}", "_speedup:=0", "_cmd_vel_timeout:=1e9",
              "_sync_timeout:=0", "_threads:=1", "_scan_always:=true"],
