@@ -36,7 +36,12 @@ def worst(map_name, n, alg, initpos, duration, pg, seeds):
     for seed in seeds:
         cfg = GraphSimConfig(map=map_name, robots=n, alg=alg, duration=duration, seed=seed,
                              initpos=initpos, travel="euclidean", interference=False)
-        out.append(GraphSimulator(cfg, pgraph=pg).run(write=False).global_max)
+        value = GraphSimulator(cfg, pgraph=pg).run(write=False).global_max
+        if value is None:   # no vertex visited twice yet: no idleness sample
+            sys.exit(f"startpos_bench: error: argument --duration: {duration:g} s gave no "
+                     f"idleness sample ({map_name}, {n} robots, {alg}, {initpos} start, seed "
+                     f"{seed}); give a longer duration")
+        out.append(value)
     return sum(out) / len(out)
 
 
