@@ -47,6 +47,12 @@ def _sigterm_as_ctrl_c(signum, frame):
 
 def pytest_configure(config):
     process_guard.install()
+    # a shell starts a background job with SIGINT ignored (and a script run by a CI system
+    # may inherit that), and Python then keeps it ignored: pytest-xdist could not interrupt
+    # its workers (execnet interrupts a worker's running test with SIGINT), and every process
+    # the tests start would inherit the ignored signal. SIGINT is Ctrl-C here, as in a terminal
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     # a CI timeout's SIGTERM ends pytest as Ctrl-C does: teardown and sessionfinish run
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _sigterm_as_ctrl_c)
