@@ -531,3 +531,31 @@ def test_worker_plugin_lets_group_signals_pass_but_not_to_the_programs_it_starts
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+
+
+def test_local_workers_drop_the_records_of_a_scheduler_gone_first():
+    """After a Ctrl-C the campaign closes its cluster while a worker may still be busy with a
+    run; that worker's late heartbeat then failed with a logged traceback of Dask's comm layer
+    in the campaign's output. The worker plugin drops exactly those two records."""
+    import logging
+    from patrolling_sim.campaign_tasks import IgnoreGroupSignals, SchedulerGoneFirst
+    log = logging.getLogger("distributed.worker")
+    old_filters, old_int, old_term = list(log.filters), signal.getsignal(signal.SIGINT), \
+        signal.getsignal(signal.SIGTERM)
+    try:
+        IgnoreGroupSignals().setup()
+        IgnoreGroupSignals().setup()                  # a second setup adds no second filter
+        assert sum(isinstance(f, SchedulerGoneFirst) for f in log.filters) == 1
+
+        def passes(msg, *args):
+            return log.filter(logging.LogRecord(log.name, logging.ERROR, __file__, 1, msg, args,
+                                                None))
+        assert not passes("Failed to communicate with scheduler during heartbeat.")
+        assert not passes("Scheduler was unaware of this worker 'tcp://127.0.0.1:1'. "
+                          "Shutting down.")
+        assert passes("Compute Failed")
+        assert passes("Worker stream died during communication: %s", "tcp://x")
+    finally:
+        log.filters[:] = old_filters
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)

@@ -311,17 +311,21 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             # a worker busy with a run is killed after a few seconds when the cluster
             # closes: expected after an interruption (its runs are recorded as not run), so
             # Dask's warning about it is not shown; the level is restored afterwards
-            nanny_log = logging.getLogger("distributed.nanny")
-            nanny_level = nanny_log.level
+            # (nor the scheduler's warning about such a worker's late heartbeat; the worker's
+            # own records of it are dropped by campaign_tasks.SchedulerGoneFirst)
+            quiet = [logging.getLogger(n) for n in ("distributed.nanny", "distributed.scheduler")]
+            levels = [q.level for q in quiet]
             if interrupted["sig"] is not None:
-                nanny_log.setLevel(logging.ERROR)
+                for q in quiet:
+                    q.setLevel(logging.ERROR)
             for closing in (client, cluster):
                 if closing is not None:
                     try:
                         closing.close()
                     except Exception:
                         pass
-            nanny_log.setLevel(nanny_level)     # this process may run another campaign
+            for q, level in zip(quiet, levels):   # this process may run another campaign
+                q.setLevel(level)
             table = write_table(out, campaign, state)
             # a signal that came once every run was stored interrupted nothing
             stopped = interrupted["sig"] is not None and ran < len(todo)

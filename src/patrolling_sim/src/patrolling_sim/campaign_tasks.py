@@ -40,6 +40,26 @@ class IgnoreGroupSignals:
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, _ignore)
             signal.signal(signal.SIGTERM, _ignore)
+        log = logging.getLogger("distributed.worker")
+        if not any(isinstance(f, SchedulerGoneFirst) for f in log.filters):
+            log.addFilter(SchedulerGoneFirst())
+
+
+class SchedulerGoneFirst(logging.Filter):
+    """Drops the two records a LocalCluster worker logs when the campaign closes its cluster
+    while that worker is still busy with a run (after an interruption): the scheduler, in the
+    campaign's own process, has already let the worker go, so the worker's next heartbeat
+    fails ("Failed to communicate with scheduler during heartbeat", with a traceback of
+    Dask's comm layer) and the scheduler's answer ends it ("Scheduler was unaware of this
+    worker"). Both say only that the campaign is stopping, which it reports itself; seen
+    after a Ctrl-C on a loaded machine (2026-11-27). Only the campaign's own LocalCluster
+    workers get this filter (with :class:`IgnoreGroupSignals`), never a user's cluster."""
+
+    DROP = ("Failed to communicate with scheduler during heartbeat",
+            "Scheduler was unaware of this worker")
+
+    def filter(self, record):
+        return not str(record.msg).startswith(self.DROP)
 
 
 class WorldCache:
