@@ -140,13 +140,35 @@ def test_robot_launch_without_nodes_sets_the_same_parameters():
 
 
 def test_memory_estimate_per_layout():
+    """The runner's estimate adds up the measured parts (validation.MEMORY_MB): per
+    navigation process a base and the map's planner cells, per-robot plan caches or each
+    nav_host's cache of every patrol goal, agent processes when separate."""
     m = validation.MEMORY_MB
-    assert validation.memory_estimate_mb(12, "shared") == m["fixed"] + 12 * m["per_robot"]["shared"]
-    pooled = validation.memory_estimate_mb(64, "pooled:2")
-    assert pooled == m["fixed"] + 2 * m["per_nav_host"] + 64 * m["per_robot"]["pooled"]
-    assert validation.memory_estimate_mb(64, "pooled") == pooled      # default K = 2 here
-    assert pooled < validation.memory_estimate_mb(64, "shared")
+    cells, n_v = validation.map_memory_figures("broughton")
+    assert (cells, n_v) == (1000 * 800, 163)        # 0.1 m cells: one planner cell each
+    process = m["nav_process"] + m["nav_per_mcell"] * 0.8
+    shared = validation.memory_estimate_mb(12, "shared", cells, n_v)
+    assert shared == pytest.approx(m["fixed"] + 12 * (process + m["robot_nav_cache"]))
+    pooled = validation.memory_estimate_mb(64, "pooled:2", cells, n_v)
+    host = process + 163 * cells * 8 / 2**20       # a navigation function per patrol goal
+    assert pooled == pytest.approx(m["fixed"] + 2 * host + 64 * m["robot_in_host"])
+    assert validation.memory_estimate_mb(64, "pooled", cells, n_v) == pooled   # K = 2 here
+    assert pooled < validation.memory_estimate_mb(64, "shared", cells, n_v)
     assert pooled < 8 * 1024
+    # grid's planner grid is 7 times smaller; its 25 goals fit in a move_base's cache
+    grid_cells, grid_v = validation.map_memory_figures("grid")
+    assert (grid_cells, grid_v) == (344 * 344, 25)
+    grid_cache = 25 * grid_cells * 8 / 2**20
+    assert grid_cache < m["robot_nav_cache"]
+    grid_process = m["nav_process"] + m["nav_per_mcell"] * grid_cells / 1e6
+    assert validation.memory_estimate_mb(12, "shared", grid_cells, grid_v) == pytest.approx(
+        m["fixed"] + 12 * (grid_process + grid_cache))
+    assert validation.memory_estimate_mb(12, "shared", grid_cells, grid_v) < shared - 2000
+    # separate: a localiser process and an agent process per robot more
+    assert validation.memory_estimate_mb(12, "separate", cells, n_v) == pytest.approx(
+        shared + 12 * (m["localiser_process"] + m["agent_process"]))
+    # the abstract world has no navigation
+    assert validation.memory_estimate_mb(12, "shared", cells, n_v, "abstract") == m["fixed"]
     with pytest.raises(PatrolInputError) as ei:
-        validation.check_memory(64, "pooled-separate:4", available=1000.0)
+        validation.check_memory(64, "pooled-separate:4", cells, n_v, available=1000.0)
     assert "4 nav_host x" in str(ei.value) and "\n" not in str(ei.value)

@@ -207,11 +207,15 @@ def test_team_larger_than_graph_warns_and_nav_ros_fails_at_once(tmp_path):
 def test_memory_estimate_uses_the_measured_table(tmp_path):
     _one_line([START, "--map", "grid", "--robots", "500", "--alg", "CR", "--results-dir",
                str(tmp_path), "--dry-run"], "500 robots need about")
-    need = validation.memory_estimate_mb(12, "shared")
-    assert need == validation.MEMORY_MB["fixed"] + 12 * validation.MEMORY_MB["per_robot"]["shared"]
-    with pytest.raises(PatrolInputError, match="give --force"):
-        validation.check_memory(40, "shared", available=4000.0)
-    assert validation.check_memory(40, "shared", force=True, available=4000.0) > 4000
+    # the same team fits on grid and not on broughton, whose planner grid is 7 times larger
+    grid = validation.map_memory_figures("grid")
+    broughton = validation.map_memory_figures("broughton")
+    assert validation.check_memory(20, "shared", *grid, available=4000.0) < 4000
+    with pytest.raises(PatrolInputError, match="20 robots need about .* on this map .*"
+                                               "give --force"):
+        validation.check_memory(20, "shared", *broughton, available=4000.0)
+    assert validation.check_memory(20, "shared", *broughton, force=True, available=4000.0) \
+        > 4000
 
 
 def test_batch_flags_reach_every_run(tmp_path):

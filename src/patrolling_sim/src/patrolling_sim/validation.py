@@ -11,23 +11,67 @@ from .errors import PatrolInputError
 
 log = logging.getLogger(__name__)
 
-#: Measured memory of a full-stack run (proportional set size of the whole process tree,
-#: MB), from the runner benchmark in docs/BENCHMARKS.md and docs/benchmarks/runner.md
-#: (fake localisation, 4x: 907 MB with 4 robots, 1417 with 8, 2017 with 12, i.e. about
-#: 140 MB per robot over a fixed 350 MB; ``--processes separate``: 2.7 GB with 12 robots,
-#: about 200 MB per robot). Update these figures when the benchmark is re-run.
-#: ``pooled`` / ``pooled-separate`` (navigation in nav_host processes, docs/navigation.md):
-#: per robot and per nav_host process, the largest measured (docs/benchmarks/runner.md,
-#: "Layouts"): navigation PSS per robot 37-41 MB on grid with 12 robots, 60 MB on cumberland
-#: with 32, 78 MB on broughton with 64 (whose plan caches hold all 163 goals, 0.8 GB each);
-#: whole runs 0.8, 2.3 and 5.5 GB. One agent process per robot adds about 60 MB per robot
-#: (shared -> separate above).
+#: Memory of a full-stack run, peak proportional set size (PSS) of the whole process tree, MB,
+#: by part; measured with bench/runner_bench.py (docs/benchmarks/runner.md, "Memory
+#: estimate", 2026-11-27: 4 robots in robot_nav processes on five maps, 12 pooled on three,
+#: 64 pooled on broughton). A navigation process costs ``nav_process`` plus ``nav_per_mcell``
+#: per million planner cells (the planner's cost grid and graph dominate: 65-70 MB on an empty
+#: map, 114 MB per robot_nav on grid, 383 on broughton); its plan cache comes on top: a
+#: navigation function (8 bytes per planner cell) per patrol vertex (only patrol goals get
+#: an entry, docs/navigation.md), in a per-robot move_base at most ``robot_nav_cache`` (its
+#: ``~plan_cache_mb``), in a nav_host all of them (the runner sets ``~plan_cache_goals``).
+#: Update these figures when the benchmark is re-run.
 MEMORY_MB = {
-    "fixed": 350.0,                     # master, simulator, map server, monitor, runner
-    "per_robot": {"shared": 140.0, "separate": 200.0, "pooled": 80.0,
-                  "pooled-separate": 140.0},
-    "per_nav_host": 150.0,
+    "fixed": 350.0,              # master, simulator, map server, monitor, the agents' process
+    "agent_process": 60.0,       # an agent process per robot (--processes separate, *-separate)
+    "nav_process": 70.0,         # robot_nav, move_base or nav_host, before the map
+    "nav_per_mcell": 370.0,      # per million planner cells (0.1 m), in each such process
+    "localiser_process": 60.0,   # amcl / fake_localization in a process of its own (separate)
+    "robot_in_host": 30.0,       # each robot hosted by a nav_host
+    "robot_nav_cache": 32.0,     # a per-robot move_base's ~plan_cache_mb
 }
+
+
+def memory_parts(robots, processes="shared", planner_cells=0, n_vertices=0,
+                 nav="spqrel_nav_lite"):
+    """The memory estimate of a run by part: [(text, MB)], from :data:`MEMORY_MB` and the
+    map's ``planner_cells`` (:func:`map_memory_figures`) and patrol vertices. The abstract
+    world has no navigation processes; the stock ROS navigation (``nav`` "ros") is counted
+    like ours."""
+    from .runner.config import process_layout
+    m = MEMORY_MB
+    agents, layout, hosts = process_layout(processes, robots)
+    parts = [(f"{m['fixed']:.0f} MB fixed", m["fixed"])]
+    if agents == "separate":
+        parts.append((f"{robots} agent processes x {m['agent_process']:.0f} MB",
+                      robots * m["agent_process"]))
+    if nav == "abstract":
+        return parts
+    process = m["nav_process"] + m["nav_per_mcell"] * planner_cells / 1e6
+    cache = n_vertices * planner_cells * 8 / 2**20     # a navigation function per vertex
+    if layout == "pooled":
+        host = process + cache
+        parts.append((f"{hosts} nav_host x {host:.0f} MB", hosts * host))
+        parts.append((f"{robots} robots x {m['robot_in_host']:.0f} MB",
+                      robots * m["robot_in_host"]))
+    else:
+        robot = process + min(m["robot_nav_cache"], cache) + \
+            (m["localiser_process"] if layout == "separate" else 0.0)
+        parts.append((f"{robots} robots' navigation x {robot:.0f} MB", robots * robot))
+    return parts
+
+
+def map_memory_figures(map_arg):
+    """(planner cells, patrol vertices) of ``map_arg`` (a shipped map's name or a yaml path):
+    what the navigation's memory depends on. The map and graph files must be valid (they are
+    checked before this is called)."""
+    from spqrel_nav_lite.mapio import load_map
+    from spqrel_nav_lite.planner_grid import planner_shape
+    from .graph import load_graph
+    yaml_path, graph_path = paths.map_files(map_arg)
+    omap = load_map(yaml_path)
+    _, w, h = planner_shape(omap.width, omap.height, omap.resolution)
+    return w * h, load_graph(graph_path, warn=False).number_of_nodes()
 
 
 def check_map_files(map_arg, what="argument --map"):
@@ -75,38 +119,23 @@ def available_memory_mb():
     return None
 
 
-def _layout_figures(robots, processes):
-    """(MB per robot, nav_host processes, text of the fixed part) of a --processes value."""
-    mode = str(processes).partition(":")[0]
-    per = MEMORY_MB["per_robot"].get(mode, MEMORY_MB["per_robot"]["shared"])
-    hosts = 0
-    if mode.startswith("pooled"):
-        from .runner.config import process_layout
-        try:
-            hosts = process_layout(processes, robots)[2]
-        except PatrolInputError:
-            hosts = 1
-    fixed = MEMORY_MB["fixed"] + hosts * MEMORY_MB["per_nav_host"]
-    return per, hosts, fixed
+def memory_estimate_mb(robots, processes="shared", planner_cells=0, n_vertices=0,
+                       nav="spqrel_nav_lite"):
+    """MB a run needs (peak PSS of its process tree), the sum of :func:`memory_parts`."""
+    return sum(mb for _, mb in memory_parts(robots, processes, planner_cells, n_vertices, nav))
 
 
-def memory_estimate_mb(robots, processes="shared"):
-    per, _, fixed = _layout_figures(robots, processes)
-    return fixed + per * robots
-
-
-def check_memory(robots, processes="shared", force=False, available=None):
+def check_memory(robots, processes="shared", planner_cells=0, n_vertices=0,
+                 nav="spqrel_nav_lite", force=False, available=None):
     """Error (unless ``force``) when the estimate exceeds the machine's available memory."""
-    need = memory_estimate_mb(robots, processes)
+    parts = memory_parts(robots, processes, planner_cells, n_vertices, nav)
+    need = sum(mb for _, mb in parts)
     avail = available_memory_mb() if available is None else available
     if avail is None or need <= avail:
         return need
-    per, hosts, fixed = _layout_figures(robots, processes)
-    host_text = f" + {hosts} nav_host x {MEMORY_MB['per_nav_host']:.0f} MB" if hosts else ""
-    msg = (f"argument --robots: {robots} robots need about {need / 1024:.1f} GB "
-           f"({MEMORY_MB['fixed']:.0f} MB{host_text} + {robots} x {per:.0f} MB, measured), "
-           f"the machine has "
-           f"{avail / 1024:.1f} GB available")
+    detail = " + ".join(text for text, _ in parts)
+    msg = (f"argument --robots: {robots} robots need about {need / 1024:.1f} GB on this map "
+           f"({detail}, measured), the machine has {avail / 1024:.1f} GB available")
     if not force:
         raise PatrolInputError(msg + "; give --force to try anyway")
     log.warning("%s; trying anyway (--force)", msg)

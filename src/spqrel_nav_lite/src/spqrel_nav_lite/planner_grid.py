@@ -198,6 +198,14 @@ class NavFunctionCache:
             self._d.clear()
 
 
+def planner_shape(width, height, map_resolution, resolution=0.1):
+    """(k, columns, rows) of the planner grid of a ``width`` x ``height``-cell map: one
+    planner cell per k x k map cells, k = ``resolution`` / ``map_resolution`` rounded (at
+    least 1). What the planner's memory depends on (docs/navigation.md)."""
+    k = max(1, int(round(resolution / map_resolution)))
+    return k, (width + k - 1) // k, (height + k - 1) // k
+
+
 class PlannerGrid:
     """Cost grid and obstacle-free graph of ``omap`` for the given planner parameters (see
     :mod:`spqrel_nav_lite.planner` for what they mean)."""
@@ -208,14 +216,14 @@ class PlannerGrid:
         if resolution <= 0:
             raise ValueError(f"planner resolution must be positive, got {resolution}")
         self.map = omap
-        self.k = k = max(1, int(round(resolution / omap.resolution)))
+        k, self.w, self.h = planner_shape(omap.width, omap.height, omap.resolution,
+                                          resolution)
+        self.k = k
         self.res = omap.resolution * k
         self.origin = omap.origin[:2]
         self.robot_radius = float(robot_radius)
         self.inflation_radius = float(inflation_radius)
         clear = omap.clearance
-        self.h = (omap.height + k - 1) // k
-        self.w = (omap.width + k - 1) // k
         rows = np.minimum(np.arange(self.h) * k + k // 2, omap.height - 1)
         cols = np.minimum(np.arange(self.w) * k + k // 2, omap.width - 1)
         self.clear = clear[np.ix_(rows, cols)].astype(np.float64)

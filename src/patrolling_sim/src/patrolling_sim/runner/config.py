@@ -205,7 +205,10 @@ class ExperimentConfig:
             warning = validation.team_size_warning(self.robots, n_vertices, self.map_name)
             if warning:
                 log.warning("%s", warning[len("warning: "):])
-        validation.check_memory(self.robots, self.processes, self.force)
+        cells, n_vertices = (0, 0) if self.nav == "abstract" else \
+            validation.map_memory_figures(self.map)
+        validation.check_memory(self.robots, self.processes, cells, n_vertices, self.nav,
+                                force=self.force)
         if check_writable:
             check_writable_dir(self.results_dir, "argument --results-dir")
         if self.nav == "ros":
