@@ -151,9 +151,15 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
         f = open(infos[-1]).read().strip().split(";")
         sim_s, visits = float(f[10]), int(f[19])
         res["vpm"] = (visits + 25) / robots / (sim_s / 60.0) if sim_s > 0 else float("nan")
-        res["idl"] = float(f[15])
+        # empty in a run too short for any vertex to be visited twice
+        res["idl"] = float(f[15]) if f[15].strip() else float("nan")
         res["interf"] = int(f[12])
     res["load"] = os.getloadavg()[0]
+    # the runner's memory estimate for this run (patrolling_sim.validation), to compare with
+    # the measured peak PSS when its figures are updated
+    from patrolling_sim import validation
+    res["estimate_mb"] = validation.memory_estimate_mb(
+        robots, processes, *validation.map_memory_figures(map_name))
     return res
 
 
@@ -179,7 +185,8 @@ def main():
                 nan = float("nan")
                 print(f"{loc:18s} N={n:3d} exit={r['exit']} GO={r.get('go')} s "
                       f"RTF={r.get('rtf', nan):.2f} CPU={r.get('cpu', nan):.0f}% "
-                      f"PSS={r['pss_mb']:.0f} MB nav PSS/robot={r['nav_pss_mb']:.0f} MB "
+                      f"PSS={r['pss_mb']:.0f} MB (runner's estimate {r['estimate_mb']:.0f}) "
+                      f"nav PSS/robot={r['nav_pss_mb']:.0f} MB "
                       f"CPU-s/sim-s={r.get('cpu_per_sim_s', nan):.3f} "
                       f"(nav {r.get('nav_cpu_per_sim_s', nan):.3f}) "
                       f"visits/robot/min={r.get('vpm', nan):.1f} "
@@ -196,15 +203,15 @@ def main():
                     f"({os.cpu_count()} cores)\n\n")
             f.write("| localisation | robots | exit | launch to GO (s) | sustained RTF | "
                     "CPU (% of a core) | CPU-s per sim-s (nav) | peak PSS (MB) | "
-                    "nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
+                    "runner's estimate (MB) | nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
                     "| interferences | robot contacts | stale commands (%) | load avg |\n")
-            f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+            f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
             nan = float("nan")
             for r in rows:
                 f.write(f"| {r['loc']} | {r['robots']} | {r['exit']} | {r.get('go')} | "
                         f"{r.get('rtf', nan):.2f} | {r.get('cpu', nan):.0f} | "
                         f"{r.get('cpu_per_sim_s', nan):.3f} ({r.get('nav_cpu_per_sim_s', nan):.3f})"
-                        f" | {r['pss_mb']:.0f} | "
+                        f" | {r['pss_mb']:.0f} | {r['estimate_mb']:.0f} | "
                         f"{r['nav_pss_mb']:.0f} | {r.get('vpm', nan):.1f} | "
                         f"{r.get('idl', nan):.1f} | "
                         f"{r.get('interf')} | {r.get('contacts')} | {r.get('stale', nan):.1f} | "
