@@ -559,3 +559,24 @@ def test_local_workers_drop_the_records_of_a_scheduler_gone_first():
         log.filters[:] = old_filters
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
+
+
+def test_ros_campaign_runs_as_many_experiments_at_a_time_as_the_memory_holds():
+    """ROS mode: half the cores by default, fewer when the largest run's memory estimate
+    does not fit that many times; a --workers value is kept, with a warning."""
+    from patrolling_sim import validation
+    from patrolling_sim.campaign import ros_concurrency
+    small = {"map": "grid", "robots": 2, "processes": "shared", "nav": "spqrel_nav_lite"}
+    big = dict(small, map="broughton", robots=12)
+    need = validation.memory_estimate_mb(12, "shared",
+                                         *validation.map_memory_figures("broughton"))
+    assert ros_concurrency([small], cores=16, available=64000.0) == (8, None)
+    n, note = ros_concurrency([small, big], cores=16, available=3.5 * need)
+    assert n == 3 and "largest run needs about" in note
+    assert ros_concurrency([big], cores=2, available=0.5 * need)[0] == 1
+    n, note = ros_concurrency([big], cores=16, requested=5, available=3.5 * need)
+    assert n == 5 and note.startswith("warning: --workers 5:")
+    assert ros_concurrency([big], cores=16, requested=3, available=3.5 * need) == (3, None)
+    # the abstract world has no navigation to hold
+    abstract = dict(big, nav="abstract")
+    assert ros_concurrency([abstract], cores=16, available=3.5 * need) == (8, None)

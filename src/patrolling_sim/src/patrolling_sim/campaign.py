@@ -131,6 +131,40 @@ def _env_for_workers():
     dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})
 
 
+def ros_concurrency(configs, cores, requested=None, available=None):
+    """(experiments at a time, note or None) of a ROS campaign on this machine. Default: half
+    the cores (at least 1), and no more than the machine's available memory holds of the
+    largest memory estimate among ``configs`` (the runs' configuration dicts;
+    :func:`patrolling_sim.validation.memory_parts`). A ``requested`` number is kept; the note
+    then says when the estimate does not fit. ``available``: MB (None: read from the
+    machine)."""
+    from . import validation
+    from .runner.config import NAV_ALIASES
+    figures = {}
+    need = 0.0
+    for c in configs:
+        if c["map"] not in figures:
+            figures[c["map"]] = validation.map_memory_figures(c["map"])
+        nav = NAV_ALIASES.get(c.get("nav"), c.get("nav"))
+        need = max(need, validation.memory_estimate_mb(c["robots"], c.get("processes"),
+                                                       *figures[c["map"]], nav))
+    avail = validation.available_memory_mb() if available is None else available
+    fit = None if not need or avail is None else int(avail // need)
+    if requested:
+        note = None
+        if fit is not None and requested > fit:
+            note = (f"warning: --workers {requested}: {requested} experiments at a time need "
+                    f"about {requested * need / 1024:.1f} GB (the largest run about "
+                    f"{need / 1024:.1f} GB), the machine has {avail / 1024:.1f} GB available")
+        return requested, note
+    n = max(1, cores // 2)
+    if fit is not None and fit < n:
+        return max(1, fit), (f"{max(1, fit)} experiment(s) at a time: the largest run needs "
+                             f"about {need / 1024:.1f} GB, the machine has "
+                             f"{avail / 1024:.1f} GB available")
+    return n, None
+
+
 class _ClusterStart:
     """A LocalCluster (graph mode: one single-threaded worker process per ``n``; ROS mode:
     ``n`` concurrent experiments) started in a background thread. ``result()`` waits for it
@@ -178,7 +212,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             LocalCluster sized to this machine and stops it at the end.
         workers: LocalCluster size (graph mode: worker processes, one run at a time each;
             ROS mode: concurrent experiments). Default: the core count (graph), half of it,
-            at least 1 (ROS).
+            at least 1, and no more than the memory holds (ROS, :func:`ros_concurrency`).
         retry_failed: also redo crashed runs.
         limit: submit at most this many runs (tests, dry runs).
         on_record: called with each stored record (tests).
@@ -225,8 +259,13 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
         if todo and not scheduler:
             # the LocalCluster starts in a thread: its worker processes start and import on
             # the other core(s) while this process does its own preparation below
-            starting = _ClusterStart(workers or (cores if campaign.mode == "graph"
-                                                 else max(1, cores // 2)))
+            if campaign.mode == "graph":
+                size = workers or cores
+            else:
+                size, note = ros_concurrency([r.config for r in todo], cores, workers)
+                if note:
+                    stream.write(f"campaign {campaign.name}: {note}\n")
+            starting = _ClusterStart(size)
         prov["packages"] = _package_versions()
         if starting is not None:
             import pandas  # noqa: F401  (runs.csv needs it at the end: imported while waiting)
