@@ -203,8 +203,9 @@ def main():
                     f"({os.cpu_count()} cores)\n\n")
             f.write("| localisation | robots | exit | launch to GO (s) | sustained RTF | "
                     "CPU (% of a core) | CPU-s per sim-s (nav) | peak PSS (MB) | "
-                    "runner's estimate (MB) | nav PSS/robot (MB) | visits/robot/sim-min | avg idleness (s) "
-                    "| interferences | robot contacts | stale commands (%) | load avg |\n")
+                    "runner's estimate (MB) | nav PSS/robot (MB) | visits/robot/sim-min | "
+                    "avg idleness (s) | interferences | robot contacts | stale commands (%) | "
+                    "load avg |\n")
             f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
             nan = float("nan")
             for r in rows:
