@@ -61,17 +61,22 @@ def memory_parts(robots, processes="shared", planner_cells=0, n_vertices=0,
     return parts
 
 
-def map_memory_figures(map_arg):
-    """(planner cells, patrol vertices) of ``map_arg`` (a shipped map's name or a yaml path):
-    what the navigation's memory depends on. The map and graph files must be valid (they are
-    checked before this is called)."""
-    from spqrel_nav_lite.mapio import load_map
+def memory_figures(omap, graph):
+    """(planner cells, patrol vertices) of a loaded map (OccupancyMap) and its patrol graph:
+    what the navigation's memory depends on."""
     from spqrel_nav_lite.planner_grid import planner_shape
+    _, w, h = planner_shape(omap.width, omap.height, omap.resolution)
+    return w * h, graph.number_of_nodes()
+
+
+def map_memory_figures(map_arg):
+    """:func:`memory_figures` of ``map_arg`` (a shipped map's name or a yaml path), read from
+    its files. The map and graph files must be valid (they are checked before this is
+    called)."""
+    from spqrel_nav_lite.mapio import load_map
     from .graph import load_graph
     yaml_path, graph_path = paths.map_files(map_arg)
-    omap = load_map(yaml_path)
-    _, w, h = planner_shape(omap.width, omap.height, omap.resolution)
-    return w * h, load_graph(graph_path, warn=False).number_of_nodes()
+    return memory_figures(load_map(yaml_path), load_graph(graph_path, warn=False))
 
 
 def check_map_files(map_arg, what="argument --map"):

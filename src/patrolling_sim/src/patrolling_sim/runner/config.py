@@ -198,16 +198,22 @@ class ExperimentConfig:
             raise PatrolInputError("argument --record-period: must be > 0 when recording")
         if not self.initpos:
             self.initpos = "default"
+        bundle = None
         if check_start_positions:
-            self.start_positions()          # one-line error when they cannot be placed
-            from ..graph import load_graph
-            n_vertices = load_graph(paths.map_files(self.map)[1], warn=False).number_of_nodes()
-            warning = validation.team_size_warning(self.robots, n_vertices, self.map_name)
+            # the map and its graph, read once: start poses, team size and memory estimate
+            bundle = paths.load_map_bundle(self.map)
+            self.start_positions(bundle)    # one-line error when they cannot be placed
+            warning = validation.team_size_warning(self.robots, bundle[1].number_of_nodes(),
+                                                   self.map_name)
             if warning:
                 log.warning("%s", warning[len("warning: "):])
-        cells, n_vertices = (0, 0) if self.nav == "abstract" else \
-            validation.map_memory_figures(self.map)
-        validation.check_memory(self.robots, self.processes, cells, n_vertices, self.nav,
+        if self.nav == "abstract":
+            figures = (0, 0)                # no navigation processes
+        elif bundle is not None:
+            figures = validation.memory_figures(*bundle)
+        else:
+            figures = validation.map_memory_figures(self.map)
+        validation.check_memory(self.robots, self.processes, *figures, self.nav,
                                 force=self.force)
         if check_writable:
             check_writable_dir(self.results_dir, "argument --results-dir")
@@ -233,11 +239,13 @@ class ExperimentConfig:
                               seed=self.seed, what_comm="argument --comm",
                               what_attr="argument --attrition")
 
-    def start_positions(self):
-        """[(x, y)] for the team (table entry or computed); validates the team size."""
+    def start_positions(self, bundle=None):
+        """[(x, y)] for the team (table entry or computed); validates the team size.
+        ``bundle``: the map's (OccupancyMap, graph) if already loaded
+        (:func:`patrolling_sim.paths.load_map_bundle`)."""
         from ..graph import PatrolGraph
         from ..initial_poses import load_initial_poses, start_positions
-        occ, G = paths.load_map_bundle(self.map)
+        occ, G = bundle or paths.load_map_bundle(self.map)
         table_path = paths.initial_poses_file()
         pos, _ = start_positions(paths.map_name(self.map), self.robots, PatrolGraph(G), occ,
                                  self.initpos, load_initial_poses(table_path), table_path,
