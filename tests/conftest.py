@@ -32,8 +32,7 @@ import process_guard  # noqa: E402
 
 #: ROS test modules of the second ROS group (see pytest_collection_modifyitems); every other
 #: module under tests/ros is in the first
-ROS_SECOND = ("test_experiments.py", "test_scenarios_ros.py", "test_extracted_map.py",
-              "test_rviz.py", "test_campaign_ros.py")
+ROS_SECOND = ("test_experiments.py", "test_scenarios_ros.py", "test_campaign_ros.py")
 #: ROS test modules that run last, at the end of the second ROS group
 ROS_LAST = ("test_abstract_fidelity.py",)
 #: s between SIGTERM and SIGKILL to the groups tests left running (process_guard), in a plain
@@ -63,13 +62,14 @@ def pytest_collection_modifyitems(config, items):
     """Three groups for ``make test``'s two workers (``-n 2 --dist loadgroup``), in this
     order: the unit tests, the first ROS group, the second ROS group. pytest-xdist gives the
     first two groups one worker each and the third to the worker that runs out of work first:
-    the unit tests' worker (about 300 s of unit tests against 800 s of the first ROS group).
+    the unit tests' worker (about 300 s of unit tests against 1000 s of the first ROS group).
     So two ROS tests run at a time for most of the session (each starts its own master on a
     free port; a ROS test uses about half a core to one core, docs/BENCHMARKS.md "Setup and
     test suite"), and the tests within a group one after another. The modules of
     :data:`ROS_LAST` end the second group: they make several experiments at a time and take
-    most of both cores, by then mostly alone. Without xdist the marks do nothing; the order
-    stays (unit tests first)."""
+    most of both cores. The groups are balanced from the durations ``.ci/run`` lists (tests
+    of 10 s or more): the unit tests plus the second group against the first. Without xdist
+    the marks do nothing; the order stays (unit tests first)."""
     ros = os.path.join(ROOT, "tests", "ros") + os.sep
     rank = {"unit": 0, "ros1": 1, "ros2": 2}
 
