@@ -4,9 +4,12 @@ normally (TIMEOUT, not FAIL) with the failure recorded in ``<prefix>_scenario.ya
 repaired robot patrols again; a communication model drops messages at the receivers.
 
 (a) full stack (simulator, fake localisation, navigation), grid, SEBS, 4 robots, agents in
-    one process: robot 2 fails 80 s after GO and stays silent for 120 s, twice the
-    dead-robot timeout (60 s), which must not end the run; its ground-truth pose is
-    followed with tests/ros/pose_probe.py on the run's master.
+    one process: robot 2 fails 80 s after GO and stays silent for 240 s, more than the
+    dead-robot timeout (200 s), which must not end the run; its ground-truth pose is
+    followed with tests/ros/pose_probe.py on the run's master. The timeout is above the
+    longest a live robot can go without a visit when its goal vertex is blocked by the
+    failed robot's body (docs/scenarios.md, "a failed robot's body blocks a vertex"): four
+    navigation attempts of about 30 s each, then the next vertex (ci62, with 60 s: FAIL).
 (b) abstract world, grid, DTAP, 3 robots, one process per agent, Bernoulli loss 0.2: robot
     1 fails at 80 s and is back at 180 s; its pose (odom) is followed the same way.
 (c) abstract world, grid, 2 robots on opposite sides of an obstacle, range model with and
@@ -105,8 +108,8 @@ def follow_pose(proc, robot, topic):
 
 def test_full_stack_sebs_failure(tmp_path):
     proc = start(["--map", "grid", "--robots", "4", "--alg", "SEBS", "--loc",
-                  "fake_localization", "--timeout", "200", "--speedup", "10",
-                  "--attrition", "2@80", "--dead-robot-timeout", "60"], tmp_path)
+                  "fake_localization", "--timeout", "320", "--speedup", "10",
+                  "--attrition", "2@80", "--dead-robot-timeout", "200"], tmp_path)
     code, out, go, xy = follow_pose(proc, 2, "base_pose_ground_truth")
     assert code == 0, out[-3000:]
     prefix, run, scen, visits = results(tmp_path)

@@ -144,3 +144,23 @@ def test_summary_line_reports_failures_and_messages(tmp_path):
     assert scenario_summary(prefix) == (
         "scenario: comm bernoulli:p=0.2; failures robot 1 at 80.04 s (back at 180.06 s), "
         "robot 2 at 150 s; messages sent 100, delivered 80, lost 20 (20.0 %)")
+
+
+@pytest.mark.parametrize("kw, warned", [
+    (dict(attrition="2@80", dead_robot_timeout=60.0), True),
+    (dict(attrition="2@80", dead_robot_timeout=150.0), False),     # long enough
+    (dict(attrition="2@80", dead_robot_timeout=60.0, nav="abstract"), False),  # no bodies
+    (dict(dead_robot_timeout=60.0), False),                        # no failures
+    (dict(comm="bernoulli:p=0.2", dead_robot_timeout=60.0), False),
+])
+def test_short_dead_robot_timeout_with_failures_is_warned(tmp_path, caplog, kw, warned):
+    """A failed robot's body can block a teammate's goal vertex for about 150 sim s in a
+    world with bodies (docs/scenarios.md): a shorter --dead-robot-timeout is warned about,
+    and the run still starts (a warning, not an error)."""
+    with caplog.at_level("WARNING", logger="patrolling_sim.runner.config"):
+        base(tmp_path, **kw).validate()
+    lines = [r.getMessage() for r in caplog.records if "--dead-robot-timeout" in r.getMessage()]
+    assert bool(lines) == warned, lines
+    if warned:
+        assert lines[0].startswith("--dead-robot-timeout 60 s with robot failures"), lines
+        assert "at least 150 s" in lines[0]

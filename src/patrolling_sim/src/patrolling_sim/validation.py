@@ -112,6 +112,26 @@ def team_size_warning(robots, n_vertices, map_name):
     return None
 
 
+#: sim s a live robot can go without a visit in ROS mode when a failed teammate's body blocks
+#: its goal vertex (docs/scenarios.md, "a failed robot's body blocks a vertex"): 4 navigation
+#: attempts (the first and the agent's 3 resends) of about 30 s each with the navigation's
+#: defaults (2 s blocked_patience, 3 recoveries of at most 7 s, 2 s again after each), the
+#: 1-s back-ups, and the trip to the next vertex
+BLOCKED_VERTEX_SILENCE = 150.0
+
+
+def failure_timeout_warning(failures, nav, dead_robot_timeout):
+    """The warning line when a run with robot failures (``failures``: the schedule, empty
+    without) in a world with bodies (any ``nav`` but ``abstract``) declares a robot dead after
+    fewer sim seconds than a live robot can spend on a vertex a failed one blocks, or None."""
+    if not failures or nav == "abstract" or dead_robot_timeout >= BLOCKED_VERTEX_SILENCE:
+        return None
+    return (f"warning: --dead-robot-timeout {dead_robot_timeout:g} s with robot failures: a "
+            f"teammate whose goal vertex a failed robot blocks can go about "
+            f"{BLOCKED_VERTEX_SILENCE:g} s without a visit, and the run would end FAIL "
+            f"naming it (docs/scenarios.md); give at least {BLOCKED_VERTEX_SILENCE:g} s")
+
+
 def available_memory_mb():
     """MemAvailable of /proc/meminfo in MB (None if unknown)."""
     try:

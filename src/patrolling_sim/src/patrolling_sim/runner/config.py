@@ -191,7 +191,11 @@ class ExperimentConfig:
                 f"pace the agents and the navigation can follow, e.g. 4; see the README)")
         if not 0 <= self.loss < 1:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
-        self.scenario()                     # one-line errors for --comm / --attrition
+        failures = self.scenario()[1]       # one-line errors for --comm / --attrition
+        warning = validation.failure_timeout_warning(failures, self.nav,
+                                                     self.dead_robot_timeout)
+        if warning:
+            log.warning("%s", warning[len("warning: "):])
         if self.cycles < 0:
             raise PatrolInputError(f"argument --cycles: must be >= 0, got {self.cycles}")
         if self.record and self.record_period <= 0:
