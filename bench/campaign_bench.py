@@ -8,7 +8,10 @@ same worker function in a loop in one process.
 
 Each measurement is a fresh campaign folder (nothing skipped). Prints a Markdown table. The
 loop baseline runs the same function the workers run (simulation, files read back, metrics);
-the client's storing of files and records is part of the campaign figures. The fixed cost of
+the client's storing of files and records is part of the campaign figures. A second loop also
+stores each run's files and state record as the client does (the same work as a campaign
+without its engine); the overhead is also given against it, in wall and in CPU time (a 1-worker
+campaign stores on the other core while its worker runs). The fixed cost of
 a campaign (interpreter start, campaign validation, LocalCluster start and stop, runs.csv) is
 measured as a 1-run campaign minus one run of the loop, and the overhead is given with and
 without it. CPU seconds are the campaign process tree's (client, scheduler, workers, and the workers'
@@ -90,16 +93,25 @@ def timed_campaign(path, out, workers):
     return wall, _children_cpu() - c0
 
 
-def timed_loop(path):
+def timed_loop(path, store_out=None):
+    """(wall s, CPU s) of the campaign's runs made one after the other in this process by the
+    workers' function; with ``store_out``, each run's files and state record are also stored
+    there as the campaign's client stores them (``campaign_store.store_result``), so that the
+    loop does all the work of the campaign and only the engine (Dask, processes, transfers,
+    the overlap of storing and running) differs."""
     from patrolling_sim.campaign import load_campaign, run_graph_task
+    from patrolling_sim.campaign_store import store_result
     from patrolling_sim.campaign_tasks import WorldCache
     camp = load_campaign(path)
     worlds = WorldCache()                      # kept across the runs, as a worker's
     run_graph_task(camp.runs[0].config, worlds)    # imports and caches warm, as in a worker
+    next_free = {}
     c0 = time.process_time()
     t0 = time.perf_counter()
     for r in camp.runs:
-        run_graph_task(r.config, worlds)
+        res = run_graph_task(r.config, worlds)
+        if store_out is not None:
+            store_result(store_out, r, res, camp, next_free)
     return time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -118,7 +130,7 @@ def main():
     _become_subreaper()
     tmp = tempfile.mkdtemp(prefix="campaign_bench_")
     names = ("loop in one process", "campaign, 1 worker", "campaign, 2 workers",
-             "campaign of 1 run (fixed cost)")
+             "campaign of 1 run (fixed cost)", "loop in one process, storing the files")
     got = {name: [] for name in names}
     try:
         path = campaign_file(tmp, a)
@@ -128,13 +140,15 @@ def main():
             got[names[1]].append(timed_campaign(path, os.path.join(tmp, f"w1_{i}"), 1))
             got[names[2]].append(timed_campaign(path, os.path.join(tmp, f"w2_{i}"), 2))
             got[names[3]].append(timed_campaign(one_path, os.path.join(tmp, f"one_{i}"), 1))
+            got[names[4]].append(timed_loop(path, os.path.join(tmp, f"loop_{i}")))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     spread = {k: (min(t for t, _ in v), statistics.median(t for t, _ in v),
                   max(t for t, _ in v)) for k, v in got.items()}
-    loop, w1, w2, one = (min(got[k]) for k in names)
+    loop, w1, w2, one, stored = (min(got[k]) for k in names)
     n = a.runs
     fixed = one[0] - loop[0] / n
+    fixed_cpu = one[1] - stored[1] / n
     uptime = os.getloadavg()
     print(f"Machine: {platform.node()}, {os.cpu_count()} cores, load avg at the end "
           f"{uptime[0]:.2f}, "
@@ -144,7 +158,7 @@ def main():
     print(f"| how | wall (s) | runs/s | per run (ms) | CPU (s) | wall range of {a.repeat} (s) | "
           "median (s) |")
     print("|---|---|---|---|---|---|---|")
-    for name, (t, c) in zip(names, (loop, w1, w2, one)):
+    for name, (t, c) in zip(names, (loop, w1, w2, one, stored)):
         k = 1 if name.endswith("(fixed cost)") else n
         lo, med, hi = spread[name]
         print(f"| {name} | {t:.1f} | {k / t:.2f} | {1000 * t / k:.1f} | {c:.1f} | "
@@ -154,6 +168,14 @@ def main():
           f"engine overhead with 1 worker: {100 * (w1[0] - loop[0]) / loop[0]:+.1f} % "
           f"(without the fixed cost of {fixed:.1f} s: "
           f"{100 * (w1[0] - fixed - loop[0]) / loop[0]:+.1f} %)")
+    print(f"against the loop that also stores the files (the same work without the engine): "
+          f"1 worker {100 * (w1[0] - stored[0]) / stored[0]:+.1f} % wall "
+          f"({100 * (w1[0] - fixed - stored[0]) / stored[0]:+.1f} % without the fixed cost; "
+          f"the client stores while the worker runs); CPU of the whole campaign "
+          f"{100 * (w1[1] - stored[1]) / stored[1]:+.1f} % with 1 worker, "
+          f"{100 * (w2[1] - stored[1]) / stored[1]:+.1f} % with 2 (without the fixed cost's "
+          f"{fixed_cpu:.1f} CPU s: {100 * (w1[1] - fixed_cpu - stored[1]) / stored[1]:+.1f} "
+          f"and {100 * (w2[1] - fixed_cpu - stored[1]) / stored[1]:+.1f} %)")
     # the same figures per repetition (each from measurements taken one after the other)
     over = []
     for (lt, _), (wt, _), (ot, _) in zip(got[names[0]], got[names[1]], got[names[3]]):
