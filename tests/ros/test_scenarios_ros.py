@@ -72,9 +72,11 @@ def on_time(recorded, scheduled):
     """A failure/repair time the monitor recorded (when the report arrived) against the
     schedule: late by the agent's timer latency times the pace (on a loaded machine at 30x a
     few sim seconds); early only by the monitor's own clock lagging the agent's: each node
-    keeps the latest /clock it has received, and a loaded monitor can be a few 0.02 s steps
-    behind (ci28: a repair due at 180.0 recorded at 179.92)."""
-    return scheduled - 0.5 <= recorded <= scheduled + 6.0
+    keeps the latest /clock it has received, and a loaded monitor's /clock thread can be a
+    few tens of wall ms behind, i.e. up to a sim second or two at 30x (ci28: a repair due at
+    180.0 recorded at 179.92; ci64: the agent failed at its sim 81.54 s, 80.06 s after GO,
+    and the monitor, its clock then reading 80.48, recorded 79.0)."""
+    return scheduled - 2.0 <= recorded <= scheduled + 6.0
 
 
 def follow_pose(proc, robot, topic):
