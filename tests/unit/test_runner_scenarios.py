@@ -149,6 +149,7 @@ def test_summary_line_reports_failures_and_messages(tmp_path):
 @pytest.mark.parametrize("kw, warned", [
     (dict(attrition="2@80", dead_robot_timeout=60.0), True),
     (dict(attrition="2@80", dead_robot_timeout=150.0), False),     # long enough
+    (dict(attrition="2@80", dead_robot_timeout=0.0), False),       # 0: no robot declared dead
     (dict(attrition="2@80", dead_robot_timeout=60.0, nav="abstract"), False),  # no bodies
     (dict(dead_robot_timeout=60.0), False),                        # no failures
     (dict(comm="bernoulli:p=0.2", dead_robot_timeout=60.0), False),

@@ -123,8 +123,9 @@ BLOCKED_VERTEX_SILENCE = 150.0
 def failure_timeout_warning(failures, nav, dead_robot_timeout):
     """The warning line when a run with robot failures (``failures``: the schedule, empty
     without) in a world with bodies (any ``nav`` but ``abstract``) declares a robot dead after
-    fewer sim seconds than a live robot can spend on a vertex a failed one blocks, or None."""
-    if not failures or nav == "abstract" or dead_robot_timeout >= BLOCKED_VERTEX_SILENCE:
+    fewer sim seconds than a live robot can spend on a vertex a failed one blocks, or None.
+    A ``dead_robot_timeout`` of 0 declares no robot dead: nothing to warn about."""
+    if not failures or nav == "abstract" or not 0 < dead_robot_timeout < BLOCKED_VERTEX_SILENCE:
         return None
     return (f"warning: --dead-robot-timeout {dead_robot_timeout:g} s with robot failures: a "
             f"teammate whose goal vertex a failed robot blocks can go about "
