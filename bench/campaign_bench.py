@@ -14,8 +14,8 @@ without its engine); the overhead is also given against it, in wall and in CPU t
 campaign stores on the other core while its worker runs). The fixed cost of
 a campaign (interpreter start, campaign validation, LocalCluster start and stop, runs.csv) is
 measured as a 1-run campaign minus one run of the loop, and the overhead is given with and
-without it. CPU seconds are the campaign process tree's (client, scheduler, workers, and the workers'
-forkserver, which ends just after the command: this process is their subreaper).
+without it. CPU seconds are the campaign process tree's (client, scheduler, workers, and the
+workers' forkserver, which ends just after the command: this process is their subreaper).
 
 Each measurement is repeated ``--repeat`` times and the fastest is kept (as ``timeit`` does:
 on a shared virtual machine the slower repetitions measure the neighbours, not the code); the
