@@ -1,6 +1,7 @@
 """Campaigns (patrolling_sim.campaign): validation of campaign files, a graph-mode campaign on
 a 2-worker LocalCluster interrupted and resumed, and the same campaign on a separately started
 Dask scheduler + 2 workers."""
+import logging
 import os
 import signal
 import socket
@@ -62,6 +63,31 @@ def test_bad_campaign_file_cli_exit_2_nothing_written(tmp_path):
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and "not valid YAML" in p.stderr
     assert not out.exists()
+
+
+def test_validation_warnings_are_given_once_with_their_count(tmp_path, capsys):
+    """A warning the runner gives while a campaign's runs are validated comes once, with the
+    number of runs it concerns, not once per run; a campaign without one has none; the
+    package's logger propagates again afterwards."""
+    ros = {"name": "w", "mode": "ros", "seeds": 3,
+           "fixed": {"map": "grid", "robots": 4, "alg": "SEBS", "timeout": 100,
+                     "attrition": "2@50", "dead_robot_timeout": 60}}
+    camp = load_campaign(_write(tmp_path, ros))
+    assert len(camp.runs) == 3
+    [line] = camp.warnings
+    assert line.startswith("--dead-robot-timeout 60 s with robot failures")
+    assert line.endswith("(in 3 of the 3 runs)")
+    assert "dead-robot-timeout" not in capsys.readouterr().err
+    assert logging.getLogger("patrolling_sim").propagate
+    ros["fixed"]["dead_robot_timeout"] = 300
+    assert load_campaign(_write(tmp_path, ros)).warnings == []
+    assert load_campaign(_write(tmp_path, CAMPAIGN)).warnings == []
+    # the command prints it once
+    p = subprocess.run([sys.executable, SCRIPT, _write(tmp_path, dict(ros, fixed=dict(
+        ros["fixed"], dead_robot_timeout=60))), "--dry-run", "--out", str(tmp_path / "o")],
+        capture_output=True, text=True, env=_env())
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.count("campaign.py: warning: --dead-robot-timeout 60 s") == 1, p.stderr
 
 
 def test_keys_are_stable_and_cover_the_grid(tmp_path):

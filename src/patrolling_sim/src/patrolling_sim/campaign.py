@@ -430,6 +430,8 @@ def main(argv=None):
         if a.limit is not None and a.limit < 1:
             ap.error(f"argument --limit: must be >= 1, got {a.limit}")
         camp = load_campaign(a.campaign)
+        for line in camp.warnings:
+            sys.stderr.write(f"campaign.py: warning: {line}\n")
         out = a.out or os.path.join(paths.data_root(), "results", "campaigns", camp.name)
         if a.dry_run:
             state = load_state(out) if os.path.isdir(out) else {}
