@@ -4,7 +4,6 @@ import dataclasses
 import hashlib
 import itertools
 import json
-import logging
 import os
 import subprocess
 from dataclasses import dataclass, field
@@ -52,36 +51,6 @@ class Campaign:
     code: Dict[str, object]
     #: the warnings validating the runs gave, each once: "<message> (in N of the M runs)"
     warnings: List[str] = field(default_factory=list)
-
-
-class _ValidationWarnings(logging.Handler):
-    """The warnings the package logs while a campaign's runs are validated (e.g. the
-    runner's team-size or failure-timeout warning), counted by message instead of printed
-    once per run: a campaign of a thousand runs would print each a thousand times. A context
-    manager; the package's logger does not propagate meanwhile."""
-
-    def __init__(self):
-        super().__init__(logging.WARNING)
-        self.counts: Dict[str, int] = {}
-        self._log = logging.getLogger(__package__)
-
-    def emit(self, record):
-        msg = record.getMessage()
-        self.counts[msg] = self.counts.get(msg, 0) + 1
-
-    def __enter__(self):
-        self._saved = self._log.propagate
-        self._log.addHandler(self)
-        self._log.propagate = False
-        return self
-
-    def __exit__(self, *exc):
-        self._log.removeHandler(self)
-        self._log.propagate = self._saved
-
-    def lines(self, n_runs):
-        return [msg + (f" (in {n} of the {n_runs} runs)" if n_runs > 1 else "")
-                for msg, n in self.counts.items()]
 
 
 # ----------------------------------------------------------------------------- configuration
@@ -218,8 +187,11 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
     code = code or code_version()
     cls = _config_class(mode)
     keys = list(grid)
+    from .campaign_tasks import RunWarnings
     runs = []
-    with _ValidationWarnings() as warned:
+    # the warnings validation logs are counted, not printed once per run: a campaign of a
+    # thousand runs would print each a thousand times
+    with RunWarnings() as warned:
         for combo in itertools.product(*(grid[k] for k in keys)):
             cfg = {n: _default(f) for n, f in fields.items()}
             cfg.update(fixed)
@@ -238,6 +210,8 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
     if len({r.key for r in runs}) != len(runs):
         raise PatrolInputError(f"{path}: the grid repeats a run (same configuration twice)")
     name = raw.get("name") or os.path.splitext(os.path.basename(path))[0]
+    n = len(runs)
     return Campaign(str(name), mode, os.path.abspath(path), runs, raw, code,
-                    warnings=warned.lines(len(runs)))
+                    warnings=[msg + (f" (in {k} of the {n} runs)" if n > 1 else "")
+                              for msg, k in warned.counts.items()])
 

@@ -240,7 +240,9 @@ class RunWarnings(logging.Handler):
     DTAP's idleness estimate that no longer fits the original's int16 payload), kept for
     the run's state record instead of printed: a worker's log lines reach the campaign's
     terminal without saying which run they came from (a full reference campaign printed
-    235 of them). A context manager; at most :data:`MAX_LINES` lines, then a count.
+    235 of them). A context manager; at most :data:`MAX_LINES` lines, then a count; every
+    message is also counted in :attr:`counts` (the campaign's validation of its runs reports
+    each warning once with the number of runs, :func:`patrolling_sim.campaign_spec.load_campaign`).
 
     The package's logger stops propagating while any run of the process is inside one (a
     worker with several threads runs several at once, ending in any order); the first to
@@ -255,6 +257,7 @@ class RunWarnings(logging.Handler):
         self._lines: List[str] = []
         self._more = 0
         self._thread = threading.get_ident()
+        self.counts: Dict[str, int] = {}        # message -> times logged, in logging order
 
     @property
     def lines(self) -> List[str]:
@@ -263,8 +266,10 @@ class RunWarnings(logging.Handler):
     def emit(self, record):
         if record.thread != self._thread:       # another run of a multi-threaded worker
             return
+        msg = record.getMessage()
+        self.counts[msg] = self.counts.get(msg, 0) + 1
         if len(self._lines) < self.MAX_LINES:
-            self._lines.append(f"{record.levelname}: {record.getMessage()}")
+            self._lines.append(f"{record.levelname}: {msg}")
         else:
             self._more += 1
 
