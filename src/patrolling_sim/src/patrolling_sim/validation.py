@@ -73,7 +73,7 @@ def map_memory_figures(map_arg):
     """:func:`memory_figures` of ``map_arg`` (a shipped map's name or a yaml path), read from
     its files. The map and graph files must be valid (they are checked before this is
     called)."""
-    from spqrel_nav_lite.mapio import load_map
+    from .mapio import load_map
     from .graph import load_graph
     yaml_path, graph_path = paths.map_files(map_arg)
     return memory_figures(load_map(yaml_path), load_graph(graph_path, warn=False))
