@@ -1,8 +1,24 @@
 """move_base's goal execution (the action's execute callback, the control loop and the
 recovery behaviours), mixed into :class:`spqrel_nav_lite.move_base_node.MoveBase`, which
 provides the inputs (pose, laser, obstacle memory), the planner and the outputs.
+
+The control loop is written once, as a generator (:meth:`GoalExecution.goal_task`) that
+yields where it waits: for the next control cycle (:class:`NextCycle`: the first odometry a
+period newer than the one the last command used) or for a moment of ROS time
+(:class:`SleepUntil`, the recoveries' and the pose wait's rate). Two drivers run it:
+
+- :meth:`GoalExecution.execute`, actionlib's execute callback, blocks its thread at every
+  wait (a thread per robot: the standalone ``move_base`` and ``robot_nav``);
+- :class:`ControlLoop` runs the goals of all robots of a ``nav_host`` in ONE thread, resuming
+  each robot's generator when its wait is over. A thread per robot cost a process hosting 16
+  robots tens of thousands of thread switches per second, and the CPU they take
+  (docs/benchmarks/runner.md, "One control thread per process").
+
+Both see the same sequence of inputs and produce the same commands; only who waits differs.
 """
+import concurrent.futures
 import math
+import threading
 
 import numpy as np
 import rospy
@@ -18,11 +34,91 @@ class Aborted(Exception):
     pass
 
 
+class NextCycle:
+    """Wait for the next control cycle: odometry at least ~``period`` newer than
+    ``used_stamp`` (the odometry the last command was computed from), or ``deadline`` (ROS
+    time) if odometry stops (see :meth:`MoveBase.wait_cycle`)."""
+    __slots__ = ("period", "used_stamp", "deadline")
+
+    def __init__(self, period, used_stamp):
+        self.period = period
+        self.used_stamp = used_stamp
+        self.deadline = rospy.get_time() + 1.5 * period
+
+    def block(self, node):
+        node.wait_cycle(self.period, self.used_stamp, self.deadline)
+
+    def ready(self, node):
+        return node.cycle_due(self.period, self.used_stamp) or rospy.get_time() >= self.deadline
+
+
+class SleepUntil:
+    """Wait until ROS time ``until`` (s)."""
+    __slots__ = ("until",)
+
+    def __init__(self, until):
+        self.until = until
+
+    def block(self, node):
+        rospy.sleep(self.until - rospy.get_time())     # ROSInterruptException at shutdown
+
+    def ready(self, node):
+        return rospy.get_time() >= self.until
+
+
+class PlanDone:
+    """Wait for a plan that a :class:`ControlLoop`'s planning thread computes."""
+    __slots__ = ("future",)
+
+    def __init__(self, future):
+        self.future = future
+
+    def block(self, node):
+        self.future.result()
+
+    def ready(self, node):
+        return self.future.done()
+
+
+class Rate:
+    """rospy.Rate's schedule as waits: ``yield rate.sleep()`` waits until one period after
+    the previous wake-up (and restarts from now if more than two periods behind, or if time
+    went backwards), as ``rospy.Rate.sleep`` does."""
+
+    def __init__(self, hz):
+        self.period = 1.0 / hz
+        self.last = rospy.get_time()
+
+    def sleep(self):
+        now = rospy.get_time()
+        if now < self.last:
+            self.last = now
+        until = self.last + self.period
+        self.last = until
+        if now - self.last > 2 * self.period:
+            self.last = now
+        return SleepUntil(until)
+
+
 class GoalExecution:
     def execute(self, goal_msg):
+        """actionlib's execute callback: run the goal in this thread, blocking at its waits."""
+        task = self.goal_task(goal_msg)
+        wait = next(task, None)
+        while wait is not None:
+            try:
+                wait.block(self)
+            except rospy.ROSInterruptException as e:
+                wait = _throw(task, e)
+                continue
+            wait = next(task, None)
+
+    def goal_task(self, goal_msg):
+        """The goal (and the goals that preempt it) from start to its terminal state, as a
+        generator of waits (module notes)."""
         while True:
             try:
-                nxt = self.run_goal(goal_msg)
+                nxt = yield from self.run_goal(goal_msg)
             except Aborted as e:
                 self.stop()
                 rospy.logwarn("%smove_base: goal aborted: %s", self.robot_ns, e)
@@ -41,6 +137,18 @@ class GoalExecution:
                 self.end_at_shutdown()
                 return
             goal_msg = nxt
+
+    def planned(self, pose, goal, elsewhere=True, **kwargs):
+        """:meth:`make_plan`'s path (or its PlanningError): computed here, or, if
+        ``elsewhere``, by the planning thread of this robot's :class:`ControlLoop` while the
+        loop goes on with the other robots' cycles (a plan that searches takes tens of
+        milliseconds on a large map). The execute thread of a robot computes it itself."""
+        loop = self.control_loop
+        if loop is None or not elsewhere:
+            return self.make_plan(pose, goal, **kwargs)
+        future = loop.plan(self.make_plan, pose, goal, **kwargs)
+        yield PlanDone(future)
+        return future.result()
 
     def end_at_shutdown(self):
         """Every goal ends in a terminal state: the control loop also ends when the node shuts
@@ -63,7 +171,7 @@ class GoalExecution:
         goal = (gp.x, gp.y)
         if not (math.isfinite(gp.x) and math.isfinite(gp.y)):
             raise Aborted("goal position is not finite")
-        rate = rospy.Rate(self.frequency)
+        rate = Rate(self.frequency)
         dt = 1.0 / self.frequency
         start = rospy.get_time()
         pose = self.pose()
@@ -73,11 +181,11 @@ class GoalExecution:
                               f"{self.localization_timeout:.0f} s")
             if self.server.is_preempt_requested():
                 return self.preempted()
-            rate.sleep()
+            yield rate.sleep()
             pose = self.pose()
         self.laser(pose)
         try:
-            path = self.make_plan(pose, goal)
+            path = yield from self.planned(pose, goal)
         except PlanningError as e:
             self.planner.clear_obstacles()
             try:    # a bad goal is final
@@ -87,7 +195,7 @@ class GoalExecution:
             try:    # maybe only temporary obstacles are in the way: try the static map
                 with self.lock:
                     self.memory.clear()
-                path = self.make_plan(pose, goal, with_obstacles=False)
+                path = yield from self.planned(pose, goal, with_obstacles=False)
             except PlanningError:
                 raise Aborted(str(e)) from None
         timeout = self.goal_timeout if self.goal_timeout > 0 else \
@@ -125,7 +233,10 @@ class GoalExecution:
             if replan:
                 last_plan = now
                 try:
-                    path = self.make_plan(pose, goal, refresh=refresh)
+                    # from the navigation function at hand (no search) unless the obstacles
+                    # changed: the cheap periodic re-plans stay in this thread
+                    path = yield from self.planned(pose, goal, refresh=refresh,
+                                                   elsewhere=refresh)
                     index = 0
                 except PlanningError as e:
                     if blocked_since is None:
@@ -156,12 +267,12 @@ class GoalExecution:
                     raise Aborted(f"{reason}; giving up after {self.max_recoveries} recoveries")
                 rospy.loginfo("%smove_base: %s, recovery %d/%d", self.robot_ns, reason,
                               recoveries, self.max_recoveries)
-                res = self.recover(recoveries, goal, rate)
+                res = yield from self.recover(recoveries, goal, rate)
                 if res is not None:
                     return res
                 pose = self.pose()
                 try:
-                    path = self.make_plan(pose, goal)
+                    path = yield from self.planned(pose, goal)
                 except PlanningError:
                     pass
                 index = 0
@@ -175,7 +286,7 @@ class GoalExecution:
                 feedback.base_position.header.stamp = rospy.Time.now()
                 fill_pose(feedback.base_position.pose, pose)
                 self.server.publish_feedback(feedback)
-            self.wait_cycle(dt, used_stamp)
+            yield NextCycle(dt, used_stamp)
         return None
 
     def preempted(self):
@@ -205,7 +316,7 @@ class GoalExecution:
                     self.cp.robot_radius:
                 break
             self.send(-0.15, 0.0)
-            rate.sleep()
+            yield rate.sleep()
         self.stop()
         # 2. turn in place by up to ~1.5 rad, away from the nearest obstacle side
         pose = self.pose()
@@ -229,8 +340,106 @@ class GoalExecution:
             w = direction * 0.6
             self.send(0.0, w)
             self.laser(pose)
-            rate.sleep()
+            yield rate.sleep()
         self.stop()
         # obstacles still seen stay in memory (so the new plan goes around them); the others
         # expire or are cleared by the beams that now pass through them
         return None
+
+
+def _throw(task, exc):
+    """Raise ``exc`` in the generator ``task`` at its current wait; its next wait, or None
+    when it ended."""
+    try:
+        return task.throw(exc)
+    except StopIteration:
+        return None
+
+
+class ControlLoop:
+    """One thread that runs the goals of many robots (the :class:`GoalExecution` nodes of a
+    ``nav_host``): each robot's goal is a generator of waits; the thread wakes when any
+    hosted robot's odometry or goal arrives (:meth:`wake`) and resumes every robot whose
+    wait is over, one after another. Plans run in a second thread (:meth:`plan`), so that a
+    robot's search does not hold up the other robots' commands; the robot itself waits for
+    its plan, as its own thread would. A robot's new goal is accepted here when it has none
+    running, as actionlib's execute thread would; a goal that preempts a running one is taken
+    by the running generator itself (:meth:`GoalExecution.preempted`), as before.
+
+    Falls back to a wake-up every ``idle`` wall seconds, so that waits in ROS time end even
+    while no odometry arrives. ``is_shutdown``: when to stop (then every running goal gets
+    ``ROSInterruptException`` at its wait, and ends as at a node's shutdown)."""
+
+    def __init__(self, idle=0.05, is_shutdown=rospy.is_shutdown):
+        self.idle = idle
+        self.is_shutdown = is_shutdown
+        self.nodes = []
+        self._cond = threading.Condition()
+        self._pending = False
+        self._thread = threading.Thread(target=self._run, name="control_loop", daemon=True)
+        self._planner = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="planner")
+
+    def add(self, node):
+        """Host ``node``'s goals (before :meth:`start`)."""
+        node._task = node._wait = None
+        self.nodes.append(node)
+
+    def start(self):
+        self._thread.start()
+
+    def wake(self):
+        with self._cond:
+            self._pending = True
+            self._cond.notify()
+
+    def plan(self, fn, *args, **kwargs):
+        """Run ``fn(*args, **kwargs)`` in the planning thread; a Future. The loop wakes when
+        it is done."""
+        future = self._planner.submit(fn, *args, **kwargs)
+        future.add_done_callback(lambda _: self.wake())
+        return future
+
+    def join(self, timeout=None):
+        self._thread.join(timeout)
+
+    def _run(self):
+        while not self.is_shutdown():
+            with self._cond:
+                if not self._pending:
+                    self._cond.wait(self.idle)
+                self._pending = False
+            for node in self.nodes:
+                try:
+                    self._step(node)
+                except Exception as e:     # never let one robot stop the others' loops
+                    rospy.logerr("%smove_base: control loop: %r", node.robot_ns, e)
+                    node._task = node._wait = None
+                    self._abort(node, f"internal error: {e!r}")
+        self._planner.shutdown(wait=False)
+        interrupt = rospy.ROSInterruptException("ROS shutdown request")
+        for node in self.nodes:
+            if node._task is not None:
+                _throw(node._task, interrupt)
+                node._task = node._wait = None
+
+    @staticmethod
+    def _step(node):
+        if node._task is None:
+            if not node.server.is_new_goal_available():
+                return
+            node._task = node.goal_task(node.server.accept_new_goal())
+            node._wait = None
+        elif not node._wait.ready(node):
+            return
+        node._wait = next(node._task, None)
+        if node._wait is None:
+            node._task = None
+            ControlLoop._abort(node, "goal ended without a result")   # as actionlib does
+
+    @staticmethod
+    def _abort(node, text):
+        """A goal that is still active when its generator is gone ends aborted (the robot
+        stopped), so that no client waits for it forever."""
+        if node.server.is_active():
+            node.stop()
+            node.server.set_aborted(MoveBaseResult(), text)

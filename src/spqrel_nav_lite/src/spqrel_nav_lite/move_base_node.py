@@ -10,6 +10,7 @@ import functools
 import math
 import threading
 import time
+import warnings
 
 import actionlib
 import numpy as np
@@ -44,9 +45,14 @@ class MoveBase(GoalExecution):
     topic, service, action and parameter name (``"/robot_3/"`` in nav_host, which hosts many
     robots in one node; ``""``: the node's own namespace); ``shared``: a
     :class:`~spqrel_nav_lite.shared.SharedMaps` of the process (grid, fields and plan cache
-    shared with its other robots)."""
+    shared with its other robots); ``control_loop``: a
+    :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` that runs this robot's goals in the
+    thread it shares with the process's other robots (None: actionlib's execute thread of
+    this robot runs them); ``sync_cmd_vel``: publish cmd_vel without a send queue
+    (:func:`synchronous_publisher`)."""
 
-    def __init__(self, ns="~", omap=None, subscribe_pose=True, robot_ns="", shared=None):
+    def __init__(self, ns="~", omap=None, subscribe_pose=True, robot_ns="", shared=None,
+                 control_loop=None, sync_cmd_vel=False):
         if robot_ns:
             ns = robot_ns + ns
         self._p = functools.partial(param, ns=ns)
@@ -101,7 +107,8 @@ class MoveBase(GoalExecution):
         self.scan = None
         self.v = self.w = 0.0
         self.robot_ns = r = robot_ns
-        self.cmd_pub = rospy.Publisher(r + "cmd_vel", Twist, queue_size=1)
+        self.cmd_pub = synchronous_publisher(r + "cmd_vel", Twist) if sync_cmd_vel else \
+            rospy.Publisher(r + "cmd_vel", Twist, queue_size=1)
         self.last_path = None
         self.plan_pub = rospy.Publisher(ns + "plan", Path, queue_size=1, latch=True,
                                         subscriber_listener=_PlanOnSubscribe(self))
@@ -112,8 +119,15 @@ class MoveBase(GoalExecution):
         rospy.Subscriber(r + "base_scan", SCAN, self.on_scan, queue_size=1,
                          tcp_nodelay=True, buff_size=1 << 20)
         rospy.Service(ns + "clear_costmaps", Empty, self.on_clear)
-        self.server = actionlib.SimpleActionServer(r + "move_base", MoveBaseAction,
-                                                   execute_cb=self.execute, auto_start=False)
+        self.control_loop = control_loop
+        if control_loop is None:
+            self.server = actionlib.SimpleActionServer(r + "move_base", MoveBaseAction,
+                                                       execute_cb=self.execute, auto_start=False)
+        else:
+            self.server = actionlib.SimpleActionServer(r + "move_base", MoveBaseAction,
+                                                       auto_start=False)
+            self.server.register_goal_callback(control_loop.wake)
+            control_loop.add(self)
         self.server.start()
         self.client = None
         rospy.Subscriber(r + "move_base_simple/goal", PoseStamped, self.on_simple_goal,
@@ -132,19 +146,28 @@ class MoveBase(GoalExecution):
         with self.lock:
             self.odom.add(msg.header.stamp.to_sec(), pose_of(msg.pose.pose))
             self.odom_cond.notify_all()
+        if self.control_loop is not None:
+            self.control_loop.wake()
 
-    def wait_cycle(self, period, used_stamp):
-        """Wait for the next control cycle: the first odometry at least ~one period newer than
-        ``used_stamp`` (the odometry the last command was computed from), so that every command
-        is computed from a fresh pose right after the simulator's step and reaches it before
-        the next one; waking on /clock instead would use the previous step's pose (one step
-        more of latency). Falls back to the period in ROS time if odometry stops."""
-        deadline = rospy.get_time() + 1.5 * period
+    def cycle_due(self, period, used_stamp):
+        """True when odometry at least ~one ``period`` newer than ``used_stamp`` (the odometry
+        the last command was computed from) has arrived."""
+        with self.lock:
+            return self._cycle_due(period, used_stamp)
+
+    def _cycle_due(self, period, used_stamp):
+        latest = self.odom.latest()
+        return latest is not None and used_stamp is not None and \
+            latest[0] >= used_stamp + 0.75 * period
+
+    def wait_cycle(self, period, used_stamp, deadline):
+        """Wait for the next control cycle (:meth:`cycle_due`), so that every command is
+        computed from a fresh pose right after the simulator's step and reaches it before the
+        next one; waking on /clock instead would use the previous step's pose (one step more
+        of latency). Falls back to ``deadline`` in ROS time if odometry stops."""
         with self.odom_cond:
             while not rospy.is_shutdown():
-                latest = self.odom.latest()
-                if latest is not None and used_stamp is not None and \
-                        latest[0] >= used_stamp + 0.75 * period:
+                if self._cycle_due(period, used_stamp):
                     return
                 if rospy.get_time() >= deadline:
                     return
@@ -260,6 +283,20 @@ class MoveBase(GoalExecution):
         self.plans += 1
         self.publish_plan(path)
         return path
+
+
+def synchronous_publisher(topic, msg_class):
+    """A publisher that writes in the publishing thread (rospy's ``queue_size=None``). With a
+    queue, rospy hands every message to a thread of its own per subscriber connection, which
+    wakes to write it: for cmd_vel, published every control cycle, that is a second thread
+    switch per command and per robot (docs/benchmarks/runner.md, "Fewer threads"). A Twist is
+    small and its subscriber (the simulator) reads at once, so the write does not block; a
+    subscriber that stopped reading would block it once the socket's buffer is full, so only
+    nav_host, a simulation layout, uses it: the per-robot nodes keep a queue, as real robots
+    need. rospy warns about a missing ``queue_size``; here it is left out on purpose."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return rospy.Publisher(topic, msg_class, queue_size=None)
 
 
 class _PlanOnSubscribe(rospy.SubscribeListener):

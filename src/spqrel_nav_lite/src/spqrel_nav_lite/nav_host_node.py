@@ -17,9 +17,12 @@ Private parameters: ``~robots`` (robot namespaces, a list or a space-separated s
 and ``~plan_cache_goals`` (default 0: the cache keeps at least that many navigation functions,
 whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex count),
 ``~plan_store`` (default empty: none; a folder shared with other processes and runs, see
-:mod:`~spqrel_nav_lite.plan_store`; the runner sets it) and ``~plan_store_mb`` (its bound,
-default 4096).
+:mod:`~spqrel_nav_lite.plan_store`; the runner sets it), ``~plan_store_mb`` (its bound,
+default 4096) and ``~control_threads`` (default 1: the threads that run the control loops of
+the hosted robots, each a :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` for every K-th
+robot; 0: actionlib's execute thread per robot, as in ``robot_nav``).
 """
+import functools
 import re
 
 import rospy
@@ -47,6 +50,31 @@ def robot_namespaces(value):
     return out
 
 
+def share_status_timers(servers):
+    """One thread publishes the periodic action status of all hosted robots.
+
+    actionlib's ActionServer starts a ``rospy.Timer`` per server for its status (5 Hz by
+    default, ``actionlib_status_frequency``); under simulated time every such timer thread
+    wakes on every ``/clock`` message, so with many robots per process these wake-ups cost
+    CPU of their own (docs/benchmarks/runner.md, "Fewer threads"). The servers' timers are
+    stopped and one timer per status frequency publishes for all of them, with the same
+    ``publish_status_async`` at the same rate, so the status topics are unchanged. Returns
+    the new timers."""
+    groups = {}
+    for server in servers:
+        timer = getattr(server, "status_timer", None)
+        if timer is None:           # status_frequency 0: no periodic status
+            continue
+        timer.shutdown()
+        groups.setdefault(server.status_frequency, []).append(server)
+
+    def publish_all(event, group):
+        for server in group:
+            server.publish_status_async(event)
+    return [rospy.Timer(rospy.Duration(1.0 / freq), functools.partial(publish_all, group=group))
+            for freq, group in groups.items()]
+
+
 def main():
     rospy.init_node("nav_host")
     mode = rospy.get_param("~localization", "AMCL")
@@ -60,6 +88,8 @@ def main():
     cache_goals = param("plan_cache_goals", 0, int, check=lambda v: v >= 0, what="must be >= 0")
     store = param("plan_store", "", str) or None
     store_mb = param("plan_store_mb", 4096.0, check=lambda v: v >= 0, what="must be >= 0")
+    threads = param("control_threads", 1, int, check=lambda v: v >= 0, what="must be >= 0")
+    from .move_base_goal import ControlLoop
     from .move_base_node import MoveBase
     from .shared import SharedMaps
     shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals,
@@ -69,9 +99,12 @@ def main():
     else:
         from .fake_localization_node import FakeLocalization
     hosted = []
-    for name in robots:
+    loops = [ControlLoop() for _ in range(min(threads, len(robots)))]
+    for k, name in enumerate(robots):
         r = "/" + name + "/"
-        move_base = MoveBase(ns="move_base/", subscribe_pose=False, robot_ns=r, shared=shared)
+        move_base = MoveBase(ns="move_base/", subscribe_pose=False, robot_ns=r, shared=shared,
+                             control_loop=loops[k % len(loops)] if loops else None,
+                             sync_cmd_vel=True)
         if mode == "AMCL":
             loc = Amcl(ns="amcl/", pose_listeners=[move_base.set_localisation], robot_ns=r,
                        shared=shared)
@@ -79,8 +112,12 @@ def main():
             loc = FakeLocalization(ns="fake_localization/",
                                    pose_listeners=[move_base.set_localisation], robot_ns=r)
         hosted.append((move_base, loc))
-    rospy.loginfo("nav_host: %s + move_base of %d robots (%s) in one process", mode,
-                  len(robots), " ".join(robots))
+    share_status_timers([mb.server.action_server for mb, _ in hosted])
+    for loop in loops:
+        loop.start()
+    rospy.loginfo("nav_host: %s + move_base of %d robots (%s) in one process, %s", mode,
+                  len(robots), " ".join(robots),
+                  f"{len(loops)} control thread(s)" if loops else "a control thread per robot")
     rospy.spin()
     fields, grids, cached, hits, misses, loads, saves = shared.stats()
     rospy.loginfo("nav_host: %d likelihood field(s), %d planner grid(s), %d navigation "
