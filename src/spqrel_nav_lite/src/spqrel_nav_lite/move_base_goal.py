@@ -4,17 +4,21 @@ provides the inputs (pose, laser, obstacle memory), the planner and the outputs.
 
 The control loop is written once, as a generator (:meth:`GoalExecution.goal_task`) that
 yields where it waits: for the next control cycle (:class:`NextCycle`: the first odometry a
-period newer than the one the last command used) or for a moment of ROS time
-(:class:`SleepUntil`, the recoveries' and the pose wait's rate). Two drivers run it:
+period newer than the one the last command used), for a moment of ROS time
+(:class:`SleepUntil`, the recoveries' and the pose wait's rate) or for a plan
+(:class:`PlanDone`). Two drivers run it:
 
 - :meth:`GoalExecution.execute`, actionlib's execute callback, blocks its thread at every
-  wait (a thread per robot: the standalone ``move_base`` and ``robot_nav``);
-- :class:`ControlLoop` runs the goals of all robots of a ``nav_host`` in ONE thread, resuming
-  each robot's generator when its wait is over. A thread per robot cost a process hosting 16
-  robots tens of thousands of thread switches per second, and the CPU they take
-  (docs/benchmarks/runner.md, "One control thread per process").
+  wait and makes its plans itself (a thread per robot: the standalone ``move_base`` and
+  ``robot_nav``);
+- :class:`ControlLoop` runs the goals of many robots of a ``nav_host`` in one thread
+  (``~control_threads`` of them, default 1), resuming each robot's generator when its wait is
+  over; plans that may search run in a planning thread beside it. A thread per robot cost a
+  process hosting 16 robots tens of thousands of thread switches per second, and the CPU
+  they take (docs/navigation.md, "Threads"; docs/benchmarks/runner.md, "Fewer threads").
 
-Both see the same sequence of inputs and produce the same commands; only who waits differs.
+Both run the same code on the same inputs; only who waits, and which thread makes the plans
+that may search, differ.
 """
 import concurrent.futures
 import math
@@ -360,9 +364,10 @@ class ControlLoop:
     """One thread that runs the goals of many robots (the :class:`GoalExecution` nodes of a
     ``nav_host``): each robot's goal is a generator of waits; the thread wakes when any
     hosted robot's odometry or goal arrives (:meth:`wake`) and resumes every robot whose
-    wait is over, one after another. Plans run in a second thread (:meth:`plan`), so that a
-    robot's search does not hold up the other robots' commands; the robot itself waits for
-    its plan, as its own thread would. A robot's new goal is accepted here when it has none
+    wait is over, one after another. Plans that may search run in a second thread
+    (:meth:`plan`, called by :meth:`GoalExecution.planned`), so that a robot's search does
+    not hold up the other robots' commands; the robot itself waits for its plan, as its own
+    thread would. A robot's new goal is accepted here when it has none
     running, as actionlib's execute thread would; a goal that preempts a running one is taken
     by the running generator itself (:meth:`GoalExecution.preempted`), as before.
 
