@@ -114,7 +114,11 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
             if t is None:                   # exited since the listing
                 continue
             cum += max(0, t - seen.get(x, 0))
-            if nav_pids.setdefault(x, is_nav(x)):
+            if not nav_pids.get(x):
+                # not cached while False: a process seen between its fork and its exec still
+                # shows its parent's command line (2026-11-28: one nav_host of two missed)
+                nav_pids[x] = is_nav(x)
+            if nav_pids[x]:
                 cum_nav += max(0, t - seen.get(x, 0))
             seen[x] = t
         pss = {x: pss_kb(x) for x in pids}
