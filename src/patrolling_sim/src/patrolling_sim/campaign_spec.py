@@ -200,9 +200,7 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
             try:
                 obj = cls(**cfg)
                 obj.validate()
-            except PatrolInputError as e:
-                raise PatrolInputError(f"{path}: run with {where}: {e}")
-            except (TypeError, ValueError) as e:
+            except (PatrolInputError, TypeError, ValueError) as e:
                 raise PatrolInputError(f"{path}: run with {where}: {e}")
             runs.append(RunSpec(run_key(mode, cfg, str(code["commit"])), mode, cfg))
     if not runs:

@@ -120,12 +120,10 @@ class MoveBase(GoalExecution):
                          tcp_nodelay=True, buff_size=1 << 20)
         rospy.Service(ns + "clear_costmaps", Empty, self.on_clear)
         self.control_loop = control_loop
-        if control_loop is None:
-            self.server = actionlib.SimpleActionServer(r + "move_base", MoveBaseAction,
-                                                       execute_cb=self.execute, auto_start=False)
-        else:
-            self.server = actionlib.SimpleActionServer(r + "move_base", MoveBaseAction,
-                                                       auto_start=False)
+        self.server = actionlib.SimpleActionServer(
+            r + "move_base", MoveBaseAction, auto_start=False,
+            execute_cb=self.execute if control_loop is None else None)
+        if control_loop is not None:
             self.server.register_goal_callback(control_loop.wake)
             control_loop.add(self)
         self.server.start()
