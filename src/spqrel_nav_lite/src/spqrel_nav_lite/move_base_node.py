@@ -297,6 +297,15 @@ def synchronous_publisher(topic, msg_class):
         return rospy.Publisher(topic, msg_class, queue_size=None)
 
 
+def write_synchronously(publisher):
+    """Make an existing publisher write in the publishing thread, as
+    :func:`synchronous_publisher` does, for the subscriber connections made from now on (those
+    already made keep their queue). For the publishers actionlib creates with a queue: the
+    feedback each control cycle publishes, the status and the result. rospy's queued write
+    also ends with ``time.sleep(0)``, handing the GIL to another thread on every message."""
+    publisher.impl.set_queue_size(None)
+
+
 class _PlanOnSubscribe(rospy.SubscribeListener):
     """A new subscriber of ``~plan`` gets the latest plan (plans made while no one listened
     were not built). rospy calls this from its connection thread before it sends the latched

@@ -20,7 +20,11 @@ whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex coun
 :mod:`~spqrel_nav_lite.plan_store`; the runner sets it), ``~plan_store_mb`` (its bound,
 default 4096) and ``~control_threads`` (default 1: the threads that run the control loops of
 the hosted robots, each a :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` for every K-th
-robot; 0: actionlib's execute thread per robot, as in ``robot_nav``).
+robot; 0: actionlib's execute thread per robot, as in ``robot_nav``) and
+``~shared_receiver`` (default true: one :class:`~spqrel_nav_lite.shared_receiver.SharedReceiver`
+thread receives the hosted robots' ``odom``, ``base_pose_ground_truth`` and ``base_scan``;
+false: rospy's thread per connection). actionlib's feedback, status and result publishers of
+the hosted robots write without a send queue (docs/navigation.md, "Threads").
 """
 import functools
 import re
@@ -89,8 +93,14 @@ def main():
     store = param("plan_store", "", str) or None
     store_mb = param("plan_store_mb", 4096.0, check=lambda v: v >= 0, what="must be >= 0")
     threads = param("control_threads", 1, int, check=lambda v: v >= 0, what="must be >= 0")
+    receiver = None
+    if param("shared_receiver", True, bool):
+        from .shared_receiver import SharedReceiver
+        receiver = SharedReceiver(
+            rospy.resolve_name("/" + name + "/" + topic) for name in robots
+            for topic in ("odom", "base_scan", "base_pose_ground_truth")).install()
     from .move_base_goal import ControlLoop
-    from .move_base_node import MoveBase
+    from .move_base_node import MoveBase, write_synchronously
     from .shared import SharedMaps
     shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals,
                         store_root=store, store_bytes=store_mb * 2**20)
@@ -112,13 +122,20 @@ def main():
             loc = FakeLocalization(ns="fake_localization/",
                                    pose_listeners=[move_base.set_localisation], robot_ns=r)
         hosted.append((move_base, loc))
-    share_status_timers([mb.server.action_server for mb, _ in hosted])
+    servers = [mb.server.action_server for mb, _ in hosted]
+    share_status_timers(servers)
+    for server in servers:
+        for pub in (server.feedback_pub, server.status_pub, server.result_pub):
+            write_synchronously(pub)
     for loop in loops:
         loop.start()
     rospy.loginfo("nav_host: %s + move_base of %d robots (%s) in one process, %s", mode,
                   len(robots), " ".join(robots),
                   f"{len(loops)} control thread(s)" if loops else "a control thread per robot")
     rospy.spin()
+    if receiver is not None:
+        rospy.loginfo("nav_host: one thread received %d messages (%d reads) of %d connections",
+                      receiver.messages, receiver.reads, receiver.connections)
     fields, grids, cached, hits, misses, loads, saves = shared.stats()
     rospy.loginfo("nav_host: %d likelihood field(s), %d planner grid(s), %d navigation "
                   "functions cached, %d cache hits, %d misses, %d read from the plan store, "
