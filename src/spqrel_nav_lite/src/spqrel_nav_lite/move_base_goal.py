@@ -383,6 +383,8 @@ class ControlLoop:
         self._pending = False
         self._thread = threading.Thread(target=self._run, name="control_loop", daemon=True)
         self._planner = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="planner")
+        self.wakeups = 0        #: passes over the hosted robots
+        self.steps = 0          #: goal steps taken (waits that were over)
 
     def add(self, node):
         """Host ``node``'s goals (before :meth:`start`)."""
@@ -413,9 +415,10 @@ class ControlLoop:
                 if not self._pending:
                     self._cond.wait(self.idle)
                 self._pending = False
+            self.wakeups += 1
             for node in self.nodes:
                 try:
-                    self._step(node)
+                    self.steps += self._step(node)
                 except Exception as e:     # never let one robot stop the others' loops
                     rospy.logerr("%smove_base: control loop: %r", node.robot_ns, e)
                     node._task = node._wait = None
@@ -429,17 +432,20 @@ class ControlLoop:
 
     @staticmethod
     def _step(node):
+        """Resume ``node``'s goal if its wait is over (or start its new goal): 1 if it
+        stepped, else 0."""
         if node._task is None:
             if not node.server.is_new_goal_available():
-                return
+                return 0
             node._task = node.goal_task(node.server.accept_new_goal())
             node._wait = None
         elif not node._wait.ready(node):
-            return
+            return 0
         node._wait = next(node._task, None)
         if node._wait is None:
             node._task = None
             ControlLoop._abort(node, "goal ended without a result")   # as actionlib does
+        return 1
 
     @staticmethod
     def _abort(node, text):

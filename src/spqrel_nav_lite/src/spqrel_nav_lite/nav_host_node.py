@@ -133,6 +133,9 @@ def main():
                   len(robots), " ".join(robots),
                   f"{len(loops)} control thread(s)" if loops else "a control thread per robot")
     rospy.spin()
+    for loop in loops:
+        rospy.loginfo("nav_host: control loop: %d passes over its %d robots, %d goal steps",
+                      loop.wakeups, len(loop.nodes), loop.steps)
     if receiver is not None:
         rospy.loginfo("nav_host: one thread received %d messages (%d reads) of %d connections",
                       receiver.messages, receiver.reads, receiver.connections)
