@@ -169,6 +169,9 @@ class SharedReceiver:
     def _run(self):
         try:
             while not self._stop and not rospy.is_shutdown():
+                # connections closed elsewhere (rospy's unsubscribe) go first, so that a
+                # new socket given the same descriptor number can be registered
+                self._drop_closed()
                 self._take_incoming()
                 for key, _ in self._selector.select(self.SELECT_TIMEOUT):
                     conn = key.data
@@ -176,7 +179,6 @@ class SharedReceiver:
                         self._drain_wake()
                     else:
                         self._read(conn)
-                self._drop_closed()
         finally:
             for conn in list(self._conns):
                 self._forget(conn)
@@ -189,12 +191,23 @@ class SharedReceiver:
             if conn.done or conn.socket is None:
                 continue
             try:
-                self._selector.register(conn.socket, selectors.EVENT_READ, conn)
-            except (ValueError, OSError):      # closed meanwhile
+                self._register(conn)
+            except (KeyError, ValueError, OSError):    # closed meanwhile
                 continue
             self._conns[conn] = callback
             # data that came with the handshake, or before the registration
             self._read(conn)
+
+    def _register(self, conn):
+        try:
+            self._selector.register(conn.socket, selectors.EVENT_READ, conn)
+        except KeyError:
+            # the descriptor number of a connection closed since the last pass, reused
+            old = self._selector.get_key(conn.socket.fileno()).data
+            if old is None or not (old.done or old.socket is None):
+                raise
+            self._forget(old)
+            self._selector.register(conn.socket, selectors.EVENT_READ, conn)
 
     def _drain_wake(self):
         try:
