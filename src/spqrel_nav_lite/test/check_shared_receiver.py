@@ -32,7 +32,7 @@ def thread_names():
 class SharedReceiverTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.receiver = SharedReceiver(["/sr/a", "/sr/latched", "/sr/burst"]).install()
+        cls.receiver = SharedReceiver(["/sr/a", "/sr/latched", "/sr/burst", "/sr/last"]).install()
 
     def collect(self, topic, queue_size=None):
         got = []
@@ -110,6 +110,33 @@ class SharedReceiverTest(unittest.TestCase):
         self.assertEqual(got[-2:], [49, 50])
         sub.unregister()
         pub.unregister()
+
+    def test_last_messages_before_a_hang_up(self):
+        """Messages that came just before the publisher hung up are delivered (read together
+        with the end of the connection while the thread was held up)."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            pub = rospy.Publisher("/sr/last", Int32, queue_size=None)
+        hold = threading.Event()
+        got = []
+
+        def slow(m):
+            got.append(m.data)
+            if m.data == 0:
+                hold.wait(10)
+        sub = rospy.Subscriber("/sr/last", Int32, slow)
+        self.assertTrue(wait_until(lambda: pub.get_num_connections() == 1
+                                   and sub.get_num_connections() == 1))
+        pub.publish(Int32(0))
+        self.assertTrue(wait_until(lambda: got == [0]))
+        for i in range(1, 6):
+            pub.publish(Int32(i))
+        pub.unregister()
+        time.sleep(0.2)
+        hold.set()
+        self.assertTrue(wait_until(lambda: sub.get_num_connections() == 0))
+        self.assertEqual(got, [0, 1, 2, 3, 4, 5])
+        sub.unregister()
 
     def test_z_manage_later_then_close(self):
         """A topic added with manage() is taken over; close() gives rospy its seam back,

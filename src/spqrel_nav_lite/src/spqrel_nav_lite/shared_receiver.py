@@ -1,9 +1,9 @@
 """One thread receives the messages of many topic subscriptions (docs/navigation.md, "Threads").
 
 rospy reads every subscribed connection in a thread of its own: a process hosting the
-navigation of 16 robots runs some 50 receiving threads (odometry, ground truth and laser scans
-of each robot), each woken by the kernel for every message and each contending for the GIL.
-At 10 steps per simulated second those wake-ups cost more CPU than the messages' contents
+navigation of 32 robots runs some 100 receiving threads (odometry, ground truth and laser scans
+of each robot), each woken by the kernel for every message and each contending for the GIL;
+with that many robots per process, one thread for all of them gave a faster pace
 (docs/benchmarks/runner.md, "One receiving thread").
 
 :class:`SharedReceiver` takes over the subscriber connections of the topics it is given: rospy
@@ -236,28 +236,35 @@ class SharedReceiver:
             self._forget(conn)
             return
         self.reads += 1
+        ended = None
+        msgs = []
         try:
-            while True:
-                n = recv_buff(sock, b, conn.protocol.buff_size)
-                if n == 0:
-                    break
-                conn.stat_bytes += n
-            msgs = []
+            try:
+                while True:
+                    n = recv_buff(sock, b, conn.protocol.buff_size)
+                    if n == 0:
+                        break
+                    conn.stat_bytes += n
+            except TransportTerminated as e:   # hung up, or a socket error, as in rospy
+                ended = e
+            # the complete messages read before a hang-up are delivered, as rospy does
             if b.tell() >= 4:
                 conn.protocol.read_messages(b, msgs, sock)
-        except TransportTerminated as e:       # publisher hung up, as in rospy
-            rospy.core.logdebug("[%s] failed to receive incoming message : %s", conn.name, e)
-            self._forget(conn)
-            conn.close()
-            return
-        except Exception as e:                 # socket error, undecodable message
+        except Exception as e:                 # undecodable message
             rospy.core.logwarn("%s: closing the connection of [%s] to %s: %s",
                                rospy.get_name(), conn.name, conn.endpoint_id, e)
             self._forget(conn)
             conn.close()
             return
-        if not msgs or conn.done:
-            return
+        if ended is not None:
+            rospy.core.logdebug("[%s] failed to receive incoming message : %s", conn.name, ended)
+        if msgs and not conn.done:
+            self._deliver(conn, msgs)
+        if ended is not None:
+            self._forget(conn)
+            conn.close()
+
+    def _deliver(self, conn, msgs):
         conn.stat_num_msg += len(msgs)
         for m in msgs:
             m._connection_header = conn.header
