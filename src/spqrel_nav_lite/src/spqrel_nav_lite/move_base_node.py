@@ -301,7 +301,7 @@ def write_synchronously(publisher):
     """Make an existing publisher write in the publishing thread, as
     :func:`synchronous_publisher` does, for the subscriber connections made from now on (those
     already made keep their queue). For the publishers actionlib creates with a queue: the
-    feedback each control cycle publishes, the status and the result. rospy's queued write
+    feedback (``~feedback_frequency``), the status and the result. rospy's queued write
     also ends with ``time.sleep(0)``, handing the GIL to another thread on every message."""
     publisher.impl.set_queue_size(None)
 

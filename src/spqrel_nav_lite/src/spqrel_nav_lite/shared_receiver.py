@@ -21,9 +21,9 @@ It works through one documented seam of rospy: the TCPROS protocol handler
 
 Differences from rospy's receiving thread, both deliberate:
 
-- a connection that fails (socket error, undecodable message) is closed, as rospy closes one
-  whose publisher hangs up; rospy's thread instead reconnects to the same address after such an
-  error, which only helps a publisher that comes back on the same port;
+- a connection whose message does not decode is closed, as one that hangs up or fails at the
+  socket is (by rospy too); rospy's thread instead reconnects to the same address after such an
+  error, to a publisher that would send the same bytes again;
 - the callbacks of all taken-over connections run one after the other in one thread, so a slow
   callback delays the others (the navigation's callbacks store the message and return; the
   localiser's scan update is the slowest, docs/navigation.md).
