@@ -32,7 +32,9 @@ def thread_names():
 class SharedReceiverTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.receiver = SharedReceiver(["/sr/a", "/sr/latched", "/sr/burst", "/sr/last"]).install()
+        # with nav_host's default wait for a burst's other messages (coalesce)
+        cls.receiver = SharedReceiver(["/sr/a", "/sr/latched", "/sr/burst", "/sr/last"],
+                                      coalesce=0.001).install()
 
     def collect(self, topic, queue_size=None):
         got = []

@@ -23,7 +23,9 @@ the hosted robots, each a :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` f
 robot; 0: actionlib's execute thread per robot, as in ``robot_nav``) and
 ``~shared_receiver`` (default true: one :class:`~spqrel_nav_lite.shared_receiver.SharedReceiver`
 thread receives the hosted robots' ``odom``, ``base_pose_ground_truth`` and ``base_scan``;
-false: rospy's thread per connection). actionlib's feedback, status and result publishers of
+false: rospy's thread per connection), ``~receive_coalesce`` (default 0.001 wall s: that
+thread's wait after the first message of a burst, before it reads all that has arrived; 0:
+each message as it comes). actionlib's feedback, status and result publishers of
 the hosted robots write without a send queue (docs/navigation.md, "Threads").
 """
 import functools
@@ -93,12 +95,14 @@ def main():
     store = param("plan_store", "", str) or None
     store_mb = param("plan_store_mb", 4096.0, check=lambda v: v >= 0, what="must be >= 0")
     threads = param("control_threads", 1, int, check=lambda v: v >= 0, what="must be >= 0")
+    coalesce = param("receive_coalesce", 0.001, check=lambda v: v >= 0, what="must be >= 0")
     receiver = None
     if param("shared_receiver", True, bool):
         from .shared_receiver import SharedReceiver
         receiver = SharedReceiver(
-            rospy.resolve_name("/" + name + "/" + topic) for name in robots
-            for topic in ("odom", "base_scan", "base_pose_ground_truth")).install()
+            (rospy.resolve_name("/" + name + "/" + topic) for name in robots
+             for topic in ("odom", "base_scan", "base_pose_ground_truth")),
+            coalesce=coalesce).install()
     from .move_base_goal import ControlLoop
     from .move_base_node import MoveBase, write_synchronously
     from .shared import SharedMaps
@@ -137,8 +141,8 @@ def main():
         rospy.loginfo("nav_host: control loop: %d passes over its %d robots, %d goal steps",
                       loop.wakeups, len(loop.nodes), loop.steps)
     if receiver is not None:
-        rospy.loginfo("nav_host: one thread received %d messages (%d reads) of %d connections",
-                      receiver.messages, receiver.reads, receiver.connections)
+        rospy.loginfo("nav_host: one thread received %d messages of %d connections in %d "
+                      "wake-ups", receiver.messages, receiver.connections, receiver.wakeups)
     fields, grids, cached, hits, misses, loads, saves = shared.stats()
     rospy.loginfo("nav_host: %d likelihood field(s), %d planner grid(s), %d navigation "
                   "functions cached, %d cache hits, %d misses, %d read from the plan store, "

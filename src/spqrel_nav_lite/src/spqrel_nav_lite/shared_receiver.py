@@ -50,13 +50,20 @@ class SharedReceiver:
     ``topics``: resolved topic names to manage (more with :meth:`manage`). Call
     :meth:`install` before the subscribers are created (their connections are made
     afterwards, in rospy's registration threads; before ``rospy.init_node`` to include
-    ``/clock``). The thread ends at rospy's shutdown, or at :meth:`close`."""
+    ``/clock``). The thread ends at rospy's shutdown, or at :meth:`close`.
+
+    ``coalesce`` (wall s, default 0): after the first message of a burst the thread waits
+    this long, then reads every connection that has data. The simulator's messages of one
+    step (every robot's odometry, ground truth and scan) arrive one by one; without the wait
+    the thread wakes for each, with it about once per step, and so do the callbacks' readers
+    (the control loop). The messages are delayed by at most that long."""
 
     #: how long the thread waits in one ``select``: how soon it notices shutdown
     SELECT_TIMEOUT = 0.5
 
-    def __init__(self, topics=(), name="shared_receiver"):
+    def __init__(self, topics=(), name="shared_receiver", coalesce=0.0):
         self._topics = set(topics)
+        self.coalesce = float(coalesce)
         self._handler = rospy.impl.tcpros.get_tcpros_handler()
         self._original = None
         self._selector = selectors.DefaultSelector()
@@ -69,7 +76,8 @@ class SharedReceiver:
         self._stop = False
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self.messages = 0                #: messages delivered
-        self.reads = 0                   #: readable events handled
+        self.reads = 0                   #: readable events handled (one per connection)
+        self.wakeups = 0                 #: passes that found messages
         self._handed = 0
 
     def manage(self, resolved_name):
@@ -173,7 +181,15 @@ class SharedReceiver:
                 # new socket given the same descriptor number can be registered
                 self._drop_closed()
                 self._take_incoming()
-                for key, _ in self._selector.select(self.SELECT_TIMEOUT):
+                events = self._selector.select(self.SELECT_TIMEOUT)
+                if any(key.data is not None for key, _ in events):
+                    self.wakeups += 1
+                if self.coalesce > 0 and any(key.data is not None for key, _ in events):
+                    # a burst (the simulator's step: every robot's odometry, ground truth
+                    # and scan) is read in one pass instead of one wake-up per message
+                    time.sleep(self.coalesce)
+                    events = self._selector.select(0)
+                for key, _ in events:
                     conn = key.data
                     if conn is None:
                         self._drain_wake()
