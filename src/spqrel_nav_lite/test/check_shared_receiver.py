@@ -85,12 +85,13 @@ class SharedReceiverTest(unittest.TestCase):
         sub.unregister()
         pub.unregister()
 
-    def test_queue_size(self):
-        """Of the messages read at once, only the newest queue_size are delivered (rospy's
-        rule): a callback that holds the thread up sees the backlog trimmed."""
-        with warnings.catch_warnings():    # no send queue: written when publish() returns
+    def held_at_first_message(self, topic, queue_size=None):
+        """A publisher without a send queue (what publish() wrote is in the socket when it
+        returns) and a subscriber whose callback holds the receiving thread at message 0 until
+        ``hold`` is set; message 0 is published and has arrived. (pub, sub, got, hold)"""
+        with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            pub = rospy.Publisher("/sr/burst", Int32, queue_size=None)
+            pub = rospy.Publisher(topic, Int32, queue_size=None)
         hold = threading.Event()
         got = []
 
@@ -98,11 +99,17 @@ class SharedReceiverTest(unittest.TestCase):
             got.append(m.data)
             if m.data == 0:
                 hold.wait(10)
-        sub = rospy.Subscriber("/sr/burst", Int32, slow, queue_size=2)
+        sub = rospy.Subscriber(topic, Int32, slow, queue_size=queue_size)
         self.assertTrue(wait_until(lambda: pub.get_num_connections() == 1
                                    and sub.get_num_connections() == 1))
         pub.publish(Int32(0))
         self.assertTrue(wait_until(lambda: got == [0]))
+        return pub, sub, got, hold
+
+    def test_queue_size(self):
+        """Of the messages read at once, only the newest queue_size are delivered (rospy's
+        rule): a callback that holds the thread up sees the backlog trimmed."""
+        pub, sub, got, hold = self.held_at_first_message("/sr/burst", queue_size=2)
         for i in range(1, 51):
             pub.publish(Int32(i))
         # all 50 are in the socket while the callback waits
@@ -116,21 +123,7 @@ class SharedReceiverTest(unittest.TestCase):
     def test_last_messages_before_a_hang_up(self):
         """Messages that came just before the publisher hung up are delivered (read together
         with the end of the connection while the thread was held up)."""
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            pub = rospy.Publisher("/sr/last", Int32, queue_size=None)
-        hold = threading.Event()
-        got = []
-
-        def slow(m):
-            got.append(m.data)
-            if m.data == 0:
-                hold.wait(10)
-        sub = rospy.Subscriber("/sr/last", Int32, slow)
-        self.assertTrue(wait_until(lambda: pub.get_num_connections() == 1
-                                   and sub.get_num_connections() == 1))
-        pub.publish(Int32(0))
-        self.assertTrue(wait_until(lambda: got == [0]))
+        pub, sub, got, hold = self.held_at_first_message("/sr/last")
         for i in range(1, 6):
             pub.publish(Int32(i))
         pub.unregister()

@@ -184,11 +184,11 @@ class SharedReceiver:
                 events = self._selector.select(self.SELECT_TIMEOUT)
                 if any(key.data is not None for key, _ in events):
                     self.wakeups += 1
-                if self.coalesce > 0 and any(key.data is not None for key, _ in events):
-                    # a burst (the simulator's step: every robot's odometry, ground truth
-                    # and scan) is read in one pass instead of one wake-up per message
-                    time.sleep(self.coalesce)
-                    events = self._selector.select(0)
+                    if self.coalesce > 0:
+                        # a burst (the simulator's step: every robot's odometry, ground
+                        # truth and scan) is read in one pass, not one wake-up per message
+                        time.sleep(self.coalesce)
+                        events = self._selector.select(0)
                 for key, _ in events:
                     conn = key.data
                     if conn is None:
