@@ -10,7 +10,6 @@ import functools
 import math
 import threading
 import time
-import warnings
 
 import actionlib
 import numpy as np
@@ -48,11 +47,11 @@ class MoveBase(GoalExecution):
     shared with its other robots); ``control_loop``: a
     :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` that runs this robot's goals in the
     thread it shares with the process's other robots (None: actionlib's execute thread of
-    this robot runs them); ``sync_cmd_vel``: publish cmd_vel without a send queue
-    (:func:`synchronous_publisher`)."""
+    this robot runs them); ``sync_publishers``: cmd_vel and the action's feedback, status and
+    result written without a send queue (:func:`write_synchronously`)."""
 
     def __init__(self, ns="~", omap=None, subscribe_pose=True, robot_ns="", shared=None,
-                 control_loop=None, sync_cmd_vel=False):
+                 control_loop=None, sync_publishers=False):
         if robot_ns:
             ns = robot_ns + ns
         self._p = functools.partial(param, ns=ns)
@@ -107,8 +106,9 @@ class MoveBase(GoalExecution):
         self.scan = None
         self.v = self.w = 0.0
         self.robot_ns = r = robot_ns
-        self.cmd_pub = synchronous_publisher(r + "cmd_vel", Twist) if sync_cmd_vel else \
-            rospy.Publisher(r + "cmd_vel", Twist, queue_size=1)
+        self.cmd_pub = rospy.Publisher(r + "cmd_vel", Twist, queue_size=1)
+        if sync_publishers:         # before the simulator subscribes
+            write_synchronously(self.cmd_pub)
         self.last_path = None
         self.plan_pub = rospy.Publisher(ns + "plan", Path, queue_size=1, latch=True,
                                         subscriber_listener=_PlanOnSubscribe(self))
@@ -127,6 +127,10 @@ class MoveBase(GoalExecution):
             self.server.register_goal_callback(control_loop.wake)
             control_loop.add(self)
         self.server.start()
+        if sync_publishers:
+            action = self.server.action_server
+            for pub in (action.feedback_pub, action.status_pub, action.result_pub):
+                write_synchronously(pub)
         self.client = None
         rospy.Subscriber(r + "move_base_simple/goal", PoseStamped, self.on_simple_goal,
                          queue_size=1)
@@ -283,26 +287,18 @@ class MoveBase(GoalExecution):
         return path
 
 
-def synchronous_publisher(topic, msg_class):
-    """A publisher that writes in the publishing thread (rospy's ``queue_size=None``). With a
-    queue, rospy hands every message to a thread of its own per subscriber connection, which
-    wakes to write it: for cmd_vel, published every control cycle, that is a second thread
-    switch per command and per robot (docs/benchmarks/runner.md, "Fewer threads"). A Twist is
-    small and its subscriber (the simulator) reads at once, so the write does not block; a
-    subscriber that stopped reading would block it once the socket's buffer is full, so only
-    nav_host, a simulation layout, uses it: the per-robot nodes keep a queue, as real robots
-    need. rospy warns about a missing ``queue_size``; here it is left out on purpose."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return rospy.Publisher(topic, msg_class, queue_size=None)
-
-
 def write_synchronously(publisher):
-    """Make an existing publisher write in the publishing thread, as
-    :func:`synchronous_publisher` does, for the subscriber connections made from now on (those
-    already made keep their queue). For the publishers actionlib creates with a queue: the
-    feedback (``~feedback_frequency``), the status and the result. rospy's queued write
-    also ends with ``time.sleep(0)``, handing the GIL to another thread on every message."""
+    """Make ``publisher`` write in the publishing thread (rospy's ``queue_size=None``) for the
+    subscriber connections made from now on (those already made keep their queue), so call
+    it before anyone subscribes. With a queue, rospy hands every message to a thread of its
+    own per subscriber connection, which wakes to write it, and the queued write ends with
+    ``time.sleep(0)``, handing the GIL to another thread: for cmd_vel, published every
+    control cycle, and the action's feedback (``~feedback_frequency``), that is thread
+    switches per message and per robot (docs/benchmarks/runner.md, "Fewer threads", "One
+    receiving thread"). These messages are small and their subscribers read at once, so the
+    write does not block; a subscriber that stopped reading would block it once the socket's
+    buffer is full, so only nav_host, a simulation layout, uses it: the per-robot nodes keep
+    a queue, as real robots need."""
     publisher.impl.set_queue_size(None)
 
 

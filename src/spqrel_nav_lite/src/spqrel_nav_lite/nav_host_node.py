@@ -18,15 +18,15 @@ and ``~plan_cache_goals`` (default 0: the cache keeps at least that many navigat
 whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex count),
 ``~plan_store`` (default empty: none; a folder shared with other processes and runs, see
 :mod:`~spqrel_nav_lite.plan_store`; the runner sets it), ``~plan_store_mb`` (its bound,
-default 4096) and ``~control_threads`` (default 1: the threads that run the control loops of
+default 4096), ``~control_threads`` (default 1: the threads that run the control loops of
 the hosted robots, each a :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` for every K-th
-robot; 0: actionlib's execute thread per robot, as in ``robot_nav``) and
+robot; 0: actionlib's execute thread per robot, as in ``robot_nav``),
 ``~shared_receiver`` (default true: one :class:`~spqrel_nav_lite.shared_receiver.SharedReceiver`
 thread receives the hosted robots' ``odom``, ``base_pose_ground_truth`` and ``base_scan``;
 false: rospy's thread per connection), ``~receive_coalesce`` (default 0.001 wall s: that
 thread's wait after the first message of a burst, before it reads all that has arrived; 0:
-each message as it comes). actionlib's feedback, status and result publishers of
-the hosted robots write without a send queue (docs/navigation.md, "Threads").
+each message as it comes). The hosted robots' cmd_vel and actionlib's feedback, status and
+result publishers write without a send queue (docs/navigation.md, "Threads").
 """
 import functools
 import re
@@ -104,7 +104,7 @@ def main():
              for topic in ("odom", "base_scan", "base_pose_ground_truth")),
             coalesce=coalesce).install()
     from .move_base_goal import ControlLoop
-    from .move_base_node import MoveBase, write_synchronously
+    from .move_base_node import MoveBase
     from .shared import SharedMaps
     shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals,
                         store_root=store, store_bytes=store_mb * 2**20)
@@ -118,7 +118,7 @@ def main():
         r = "/" + name + "/"
         move_base = MoveBase(ns="move_base/", subscribe_pose=False, robot_ns=r, shared=shared,
                              control_loop=loops[k % len(loops)] if loops else None,
-                             sync_cmd_vel=True)
+                             sync_publishers=True)
         if mode == "AMCL":
             loc = Amcl(ns="amcl/", pose_listeners=[move_base.set_localisation], robot_ns=r,
                        shared=shared)
@@ -126,11 +126,7 @@ def main():
             loc = FakeLocalization(ns="fake_localization/",
                                    pose_listeners=[move_base.set_localisation], robot_ns=r)
         hosted.append((move_base, loc))
-    servers = [mb.server.action_server for mb, _ in hosted]
-    share_status_timers(servers)
-    for server in servers:
-        for pub in (server.feedback_pub, server.status_pub, server.result_pub):
-            write_synchronously(pub)
+    share_status_timers([mb.server.action_server for mb, _ in hosted])
     for loop in loops:
         loop.start()
     rospy.loginfo("nav_host: %s + move_base of %d robots (%s) in one process, %s", mode,
