@@ -76,7 +76,6 @@ class SharedReceiver:
         self._stop = False
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self.messages = 0                #: messages delivered
-        self.reads = 0                   #: readable events handled (one per connection)
         self.wakeups = 0                 #: passes that found messages
         self._handed = 0
 
@@ -251,7 +250,6 @@ class SharedReceiver:
         if sock is None or conn.done:
             self._forget(conn)
             return
-        self.reads += 1
         ended = None
         msgs = []
         try:
