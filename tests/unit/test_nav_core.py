@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from patrolling_sim.mapio import OccupancyMap, load_map
+from spqrel_nav_lite import grid_search
 from spqrel_nav_lite.controller import ControllerParams, compute_command, front_clearance
 from spqrel_nav_lite.geometry import PoseHistory, compose, inverse, normalize_angle, relative
 from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world
@@ -417,12 +418,99 @@ def test_controller_stops_for_a_robot_coming_head_on_in_time():
     assert not compute_command((0.0, 0.0, 0.0), 0.75, 0.0, path, 0, far, 0.1, p, far).blocked
 
 
-def shipped_planner(name, seed):
+def shipped_planner(name, seed, search="window"):
     """(planner on the shipped map ``name``, 0.2 m around temporary obstacles, a seeded
-    generator, the open cells as (j, i) rows) for the randomised planner tests."""
+    generator, the open cells as (j, i) rows) for the randomised planner tests; ``search``:
+    the planner's ``obstacle_search`` (the window and box tests below test scipy's searches,
+    the planner's fallback without the C++ library)."""
     p = GlobalPlanner(load_map(os.path.join(ROOT, "maps", name, f"{name}.yaml")),
-                      obstacle_margin=0.2)
+                      obstacle_margin=0.2, obstacle_search=search)
     return p, np.random.default_rng(seed), np.argwhere(~p.lethal)
+
+
+def test_astar_library_is_built_with_the_workspace():
+    """Once catkin built the workspace (as `make test` does), the planner must find the C++
+    A* and use it by default; without a build (`make unit`) it falls back to scipy."""
+    if not os.path.isdir(os.path.join(ROOT, "devel", "lib")):
+        pytest.skip("workspace not built (no devel/lib): the planner uses scipy's searches")
+    assert grid_search.load() is not None
+    p = GlobalPlanner(room(w=4, h=2.0))
+    assert p.astar and p.obstacle_search == "A* (C++)"
+    assert not GlobalPlanner(room(w=4, h=2.0), obstacle_search="window").astar
+    with pytest.raises(ValueError, match="obstacle_search"):
+        GlobalPlanner(room(w=4, h=2.0), obstacle_search="bfs")
+
+
+needs_astar = pytest.mark.skipif(
+    grid_search.load() is None,
+    reason="the C++ A* is not built (run catkin_make): test_astar_library_is_built_... "
+           "fails in a built workspace")
+
+
+@needs_astar
+@pytest.mark.parametrize("name", ["grid", "cumberland", "broughton"])
+def test_planner_astar_around_robots_is_exact(name):
+    """With the C++ A* the searches around temporary obstacles (robots on or near the
+    obstacle-free optimum, or on the goal vertex itself, which moves the goal) cost what a
+    whole-map Dijkstra with the same obstacles gives, avoid the obstacles, and expand far
+    fewer cells than the grid has; a robot beside the path steps back onto it, one further
+    off is searched again."""
+    p, rng, free = shipped_planner(name, 23, search="astar")
+    assert p.astar
+    checked = moved = band = 0
+    for _ in range(40):
+        (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
+        start, goal = p.cell_center(ai, aj), p.cell_center(bi, bj)
+        p.clear_obstacles()
+        try:
+            base = p.plan(start, goal)
+        except PlanningError:
+            continue
+        pts = base[rng.integers(len(base), size=rng.integers(1, 4))] + \
+            rng.normal(0.0, 0.3, (1, 2))
+        on_goal = rng.random() < 0.3
+        if on_goal:
+            pts = np.vstack([pts, np.array(goal) + rng.normal(0.0, 0.1, (1, 2))])
+        p.set_obstacles(pts)
+        si, sj = p.cell(*start)
+        if p.blocked_mask()[sj, si]:
+            continue
+        before, expanded = p.astar_searches, p.astar_expanded
+        try:
+            path = p.plan(start, goal)
+            cost, g = p.path_cost(start), p._field[0]
+        except PlanningError:
+            cost, g = math.inf, None
+        if g is None:
+            continue
+        ref = whole_map_cost(p, g, si, sj)
+        assert cost == pytest.approx(ref, rel=1e-5), (name, start, goal, pts)
+        assert path_blocked(path[:-1], pts, p.robot_radius) is None
+        if p.astar_searches > before:
+            assert p._field[4] == "astar"
+            assert p.astar_expanded - expanded < p.w * p.h // 4
+            moved += g != bj * p.w + bi
+            # a cell beside the path is in the field's band: it steps back onto the path
+            # (at least the exact cost); from a cell outside the band
+            # the next plan searches again, exactly
+            for i, j in ((si + 1, sj), (si, sj - 1), (si - 2, sj), (si, sj + 2)):
+                if not p.in_grid(i, j) or p.blocked_mask()[j, i]:
+                    continue
+                n, here = p.astar_searches, p.cell_center(i, j)
+                inside = bool(np.isfinite(p._field[1][j * p.w + i]))
+                walk = p.plan(here, goal)
+                assert p.astar_searches == n + (not inside)
+                exact = whole_map_cost(p, p._field[0], i, j)
+                assert path_blocked(walk[:-1], pts, p.robot_radius) is None
+                if inside:
+                    # (exact >= the path cell's cost - one step, so at most two steps more)
+                    step = math.sqrt(2) * p.res * p.cost.max()
+                    assert exact * (1 - 1e-5) <= p.path_cost(here) <= exact + 2 * step + 1e-5
+                    band += 1
+                else:
+                    assert p.path_cost(here) == pytest.approx(exact, rel=1e-5)
+            checked += 1
+    assert checked >= 8 and moved >= 1 and band >= 8, (checked, moved, band)
 
 
 def whole_map_cost(p, g, si, sj):

@@ -26,7 +26,7 @@ from spqrel_nav_lite.geometry import PoseHistory, compose, relative
 from spqrel_nav_lite.move_base_goal import GoalExecution
 from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world
 from spqrel_nav_lite.particle_filter import LikelihoodField
-from spqrel_nav_lite.planner import GlobalPlanner
+from spqrel_nav_lite.planner import OBSTACLE_SEARCHES, GlobalPlanner
 from spqrel_nav_lite.planner_grid import PlannerGrid
 from spqrel_nav_lite.ros_util import get_map, param, pose_of, strip_slash
 
@@ -84,8 +84,10 @@ class MoveBase(GoalExecution):
                          resolution=self._p("planner_resolution", 0.1, **POS),
                          cache_bytes=self._p("plan_cache_mb", 32.0, **NONNEG) * 2**20)
         margin = self._p("obstacle_margin", 0.2, **NONNEG)
+        search = self._p("obstacle_search", "astar", str, lambda v: v in OBSTACLE_SEARCHES,
+                         "one of " + ", ".join(OBSTACLE_SEARCHES))
         if shared is not None:
-            self.planner = GlobalPlanner(omap, obstacle_margin=margin,
+            self.planner = GlobalPlanner(omap, obstacle_margin=margin, obstacle_search=search,
                                          grid=shared.planner_grid(**grid_args))
             self.field = shared.likelihood_field(1.0)
         else:
@@ -94,10 +96,12 @@ class MoveBase(GoalExecution):
             grid = PlannerGrid(omap, store_root=self._p("plan_store", "", str) or None,
                                store_bytes=self._p("plan_store_mb", 4096.0, **NONNEG) * 2**20,
                                **grid_args)
-            self.planner = GlobalPlanner(omap, obstacle_margin=margin, grid=grid)
+            self.planner = GlobalPlanner(omap, obstacle_margin=margin, obstacle_search=search,
+                                         grid=grid)
             self.field = LikelihoodField(omap, max_dist=1.0)
-        rospy.loginfo("move_base: planner grid %dx%d at %.3f m, built in %.2f s",
-                      self.planner.w, self.planner.h, self.planner.res, time.time() - t0)
+        rospy.loginfo("move_base: planner grid %dx%d at %.3f m, built in %.2f s; searches with "
+                      "obstacles: %s", self.planner.w, self.planner.h, self.planner.res,
+                      time.time() - t0, self.planner.obstacle_search)
         self.memory = ObstacleMemory(cell=self.planner.res, timeout=self.obstacle_timeout)
         self.lock = threading.Lock()
         self.odom = PoseHistory(horizon=10.0)
@@ -139,9 +143,10 @@ class MoveBase(GoalExecution):
 
     def log_statistics(self):
         pl = self.planner
-        rospy.loginfo("%smove_base: %d plans, %d Dijkstra searches (%d with obstacles in a "
-                      "window), %d navigation functions cached", self.robot_ns, self.plans,
-                      pl.searches, pl.window_searches, len(pl._cache))
+        rospy.loginfo("%smove_base: %d plans, %d searches (%d with obstacles in a window, %d "
+                      "A* expanding %d cells), %d navigation functions cached", self.robot_ns,
+                      self.plans, pl.searches, pl.window_searches, pl.astar_searches,
+                      pl.astar_expanded, len(pl._cache))
 
     # -- inputs -----------------------------------------------------------------------------------
     def on_odom(self, msg):

@@ -24,16 +24,29 @@ until that holds or it covers the map. A goal moved off its own cell because a r
 there is searched with the obstacles at once (box, then window), bounded by the (cached)
 function of the goal's own cell, never by a whole-map search of its own (see ``_free_bound``):
 the box's path must then reach the goal inside the box.
+
+With the workspace built, those searches with obstacles (box, window, whole map) are replaced
+by one A* (``obstacle_search="astar"``, the default; :mod:`~spqrel_nav_lite.grid_search`, in
+C++) from the robot's cell, guided by the goal's obstacle-free function, which obstacles can
+only raise (a consistent heuristic: the path is optimal). It expands little more than the
+detour's cells, where the window searches relaxed every cell of their window (32 robots on
+cumberland: docs/benchmarks/runner.md, "A* around other robots"). Its field holds the path
+(exact) and a one-cell band beside it (back onto the path: an upper bound), so that a robot
+following the path, often a cell off it, keeps walking the same path and gets its remaining
+cost; a robot outside the band is searched again from where it is.
 """
 import math
 
 import numpy as np
 
-from .planner_grid import (PlannerGrid, box_field, edge_cost, embed_field, window_cells,
-                           window_graph)
+from . import grid_search
+from .planner_grid import (NEIGHBOURS, PlannerGrid, box_field, edge_cost, embed_field,
+                           window_cells, window_graph)
 
 
 WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
+OBSTACLE_SEARCHES = ("astar", "window")
+PATH_FIELD = "astar"    # the window entry of a field from the A* (one path and its band)
 
 
 class PlanningError(Exception):
@@ -43,11 +56,16 @@ class PlanningError(Exception):
 class GlobalPlanner:
     """Per-robot planner state (temporary obstacles, current navigation function) over a
     :class:`~spqrel_nav_lite.planner_grid.PlannerGrid`: ``grid`` shares one among the robots
-    of a process (then the grid parameters here are ignored); without it one is built."""
+    of a process (then the grid parameters here are ignored); without it one is built.
+    ``obstacle_search``: "astar" (the C++ A*, if built; else as "window") or "window" (scipy's
+    Dijkstra in a box or growing windows): see the module notes."""
 
     def __init__(self, omap, robot_radius=0.225, inflation_radius=0.66, resolution=0.1,
                  cost_scaling=3.0, cost_weight=4.0, obstacle_margin=0.1, cache_bytes=32 << 20,
-                 grid=None):
+                 grid=None, obstacle_search="astar"):
+        if obstacle_search not in OBSTACLE_SEARCHES:
+            raise ValueError(f"obstacle_search must be one of {', '.join(OBSTACLE_SEARCHES)}, "
+                             f"got {obstacle_search!r}")
         if grid is None:
             grid = PlannerGrid(omap, robot_radius, inflation_radius, resolution, cost_scaling,
                                cost_weight, cache_bytes)
@@ -65,7 +83,14 @@ class GlobalPlanner:
         self._field = None      # (goal_index, dist, pred, computed without obstacles, window)
         self._taken_goal = None  # the goal's own cell when an obstacle moved the goal off it
         self.window_searches = 0        # searches with obstacles that stayed in a window
-        self.searches = 0               # Dijkstra runs of this planner (statistics)
+        self.searches = 0               # Dijkstra and A* runs of this planner (statistics)
+        self.astar_searches = 0         # A* runs (with obstacles)
+        self.astar_expanded = 0         # cells they expanded
+        self.astar = obstacle_search == "astar" and grid_search.load() is not None
+        #: what searches with obstacles: for the node's log
+        self.obstacle_search = "A* (C++)" if self.astar else \
+            "Dijkstra in windows (scipy)" + (f"; {grid_search.LIBRARY} not built"
+                                             if obstacle_search == "astar" else "")
 
     @property
     def _cache(self):
@@ -261,6 +286,8 @@ class GlobalPlanner:
             free = self._navigation_function(g, free=True)[:2]
         # a moved goal has only a lower bound: the box's path must then reach it in the box
         free_dist, free_pred = (self._free_bound(g), None) if free is None else free
+        if self.astar:
+            return self._path_field(s, g, free_dist)
         local = self._local_field(s, g, free_dist, free_pred)
         if local is not None:
             return local
@@ -285,6 +312,52 @@ class GlobalPlanner:
                                      np.full(w * h, np.inf, dtype=np.float32),
                                      np.full(w * h, -9999, dtype=np.int32))
         return full_d, full_p, False, (i0, j0, i1, j1)
+
+    def _path_field(self, s, g, heur):
+        """(dist, pred, False, PATH_FIELD) of the A* from ``s`` to ``g`` guided by ``heur``
+        (the obstacle-free function of ``g``, or a lower bound of it): on the path's cells
+        their exact cost to ``g`` and next cell; on the open cells beside the path (one step
+        off it, as a robot following it often is) the cost of stepping back onto it and
+        following it, an upper bound; dist inf and pred -9999 elsewhere."""
+        cells, _, expanded = grid_search.astar(self.lethal, self._obstacles, self.cost, heur,
+                                               self.res, s, g)
+        self.searches += 1
+        self.astar_searches += 1
+        self.astar_expanded += expanded
+        w, n = self.w, self.w * self.h
+        dist = np.full(n, np.inf, dtype=np.float32)
+        pred = np.full(n, -9999, dtype=np.int32)
+        if cells is None:
+            return dist, pred, False, PATH_FIELD
+        cost = self.cost.ravel()
+        steps = np.zeros(len(cells))
+        i, j = cells % w, cells // w
+        steps[:-1] = edge_cost(np.hypot(np.diff(i), np.diff(j)) * self.res, cost[cells[:-1]],
+                               cost[cells[1:]])
+        togo = np.cumsum(steps[::-1])[::-1]         # cost from each path cell to g
+        # the band: each open neighbour of a path cell, linked to its cheapest path neighbour
+        blocked = self.blocked_mask()
+        q, via, c = [], [], []
+        for dj, di in NEIGHBOURS:
+            qi, qj = i + di, j + dj
+            ok = (qi >= 0) & (qi < w) & (qj >= 0) & (qj < self.h)
+            ok[ok] &= ~blocked[qj[ok], qi[ok]]
+            if di and dj:           # no corner cutting past a forbidden (static) cell
+                ok[ok] &= ~self.lethal[j[ok], qi[ok]] & ~self.lethal[qj[ok], i[ok]]
+            qc = qj[ok] * w + qi[ok]
+            q.append(qc)
+            via.append(cells[ok])
+            c.append(togo[ok] + edge_cost(math.hypot(di, dj) * self.res, cost[qc],
+                                          cost[cells[ok]]))
+        q, via, c = np.concatenate(q), np.concatenate(via), np.concatenate(c)
+        order = np.lexsort((c, q))
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = q[order][1:] != q[order][:-1]
+        q, via, c = q[order][first], via[order][first], c[order][first]
+        dist[q], pred[q] = c, via
+        dist[cells], pred[cells[:-1]] = togo, cells[1:]     # path cells keep their own
+        pred[g] = -9999
+        return dist, pred, False, PATH_FIELD
 
     def _local_field(self, s, g, free_dist, free_pred):
         """(dist, pred, False, box) of the search with the temporary obstacles in the box
