@@ -1,7 +1,8 @@
 #!/usr/bin/python3
-"""Planner benchmark: the cost of a plan around temporary obstacles (other robots), with the
-C++ A* (``obstacle_search="astar"``) and with scipy's Dijkstra in a box or growing windows
-(``"window"``), on the same cases.
+"""Planner benchmark: the cost of a plan around temporary obstacles (other robots), on the
+same cases with ``obstacle_search="astar"`` (scipy's Dijkstra in the small box around the
+obstacles, then, when the box cannot settle the plan, the C++ A*) and with ``"window"`` (the
+box, then scipy's Dijkstra in growing windows, possibly the whole map).
 
 A case is a start and a goal drawn among the free cells of a shipped map, with 1-3 robots
 standing on or near the obstacle-free optimal path and, in a third of the cases, one on the

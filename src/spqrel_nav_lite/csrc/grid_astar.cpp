@@ -1,4 +1,5 @@
-// A* over the global planner's cell grid, for the searches around temporary obstacles.
+// A* over the global planner's cell grid, for the searches around temporary obstacles that
+// the small box search (planner_grid.box_field) cannot settle.
 //
 // The planner (spqrel_nav_lite/planner.py) has, for every patrol goal, the obstacle-free
 // navigation function d_free(x) (cost from cell x to the goal without temporary obstacles,
@@ -10,7 +11,8 @@
 // scipy's Dijkstra (the planner's fallback without this library, see grid_search.py) must
 // search a window around start and goal, or the whole map, and the window's graph must be
 // built first; no library in Debian offers A* with a per-cell heuristic on this graph (the
-// grid's edge costs and corner rule below), hence this file (docs/navigation.md, "Planner").
+// grid's edge costs and corner rule below), hence this file (docs/navigation.md, "Planning
+// around other robots").
 //
 // The graph is the one of planner_grid.PlannerGrid: 8-connected cells, a cell usable if it is
 // neither lethal nor a temporary obstacle, a diagonal move allowed only if neither of the two

@@ -1,10 +1,11 @@
 """A* over the planner's cell grid, in C++ (``csrc/grid_astar.cpp``, built by catkin into the
 workspace's ``lib`` folder as ``libspqrel_nav_grid.so``), called through ctypes.
 
-The planner uses it for the searches around temporary obstacles, guided by the goal's
-obstacle-free navigation function (docs/navigation.md, "Planner"). Without the built library
-(the pure-Python unit tests can run before ``catkin_make``) :func:`load` returns None and the
-planner keeps its scipy searches; the results are optimal either way.
+The planner uses it for the searches around temporary obstacles that its small box search
+cannot settle, guided by the goal's obstacle-free navigation function (docs/navigation.md,
+"Planning around other robots"). Without the built library (the pure-Python unit tests can
+run before ``catkin_make``) :func:`load` returns None and the planner keeps its scipy
+searches; the results are optimal either way.
 
 The library is looked for, in this order, in ``$SPQREL_NAV_GRID_LIB`` (a file), the folders
 of ``$LD_LIBRARY_PATH`` (``devel/setup.bash`` puts the workspace's ``lib`` there), the
