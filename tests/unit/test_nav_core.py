@@ -435,7 +435,7 @@ def test_astar_library_is_built_with_the_workspace():
         pytest.skip("workspace not built (no devel/lib): the planner uses scipy's searches")
     assert grid_search.load() is not None
     p = GlobalPlanner(room(w=4, h=2.0))
-    assert p.astar and p.obstacle_search == "A* (C++)"
+    assert p.astar and p.search_label == "A* (C++)"
     assert not GlobalPlanner(room(w=4, h=2.0), obstacle_search="window").astar
     with pytest.raises(ValueError, match="obstacle_search"):
         GlobalPlanner(room(w=4, h=2.0), obstacle_search="bfs")

@@ -25,7 +25,6 @@
 #include <cstdlib>
 #include <limits>
 #include <queue>
-#include <vector>
 
 namespace {
 

@@ -101,7 +101,7 @@ class MoveBase(GoalExecution):
             self.field = LikelihoodField(omap, max_dist=1.0)
         rospy.loginfo("move_base: planner grid %dx%d at %.3f m, built in %.2f s; searches with "
                       "obstacles: %s", self.planner.w, self.planner.h, self.planner.res,
-                      time.time() - t0, self.planner.obstacle_search)
+                      time.time() - t0, self.planner.search_label)
         self.memory = ObstacleMemory(cell=self.planner.res, timeout=self.obstacle_timeout)
         self.lock = threading.Lock()
         self.odom = PoseHistory(horizon=10.0)

@@ -91,7 +91,7 @@ class GlobalPlanner:
         self.astar_expanded = 0         # cells they expanded
         self.astar = obstacle_search == "astar" and grid_search.load() is not None
         #: what searches with obstacles: for the node's log
-        self.obstacle_search = "A* (C++)" if self.astar else \
+        self.search_label = "A* (C++)" if self.astar else \
             "Dijkstra in windows (scipy)" + (f"; {grid_search.LIBRARY} not built"
                                              if obstacle_search == "astar" else "")
 
@@ -339,12 +339,12 @@ class GlobalPlanner:
                                cost[cells[1:]])
         togo = np.cumsum(steps[::-1])[::-1]         # cost from each path cell to g
         # the band: each open neighbour of a path cell, linked to its cheapest path neighbour
-        blocked = self.blocked_mask()
+        # (lethal and obstacles read at those cells: blocked_mask() would build a whole grid)
         q, via, c = [], [], []
         for dj, di in NEIGHBOURS:
             qi, qj = i + di, j + dj
             ok = (qi >= 0) & (qi < w) & (qj >= 0) & (qj < self.h)
-            ok[ok] &= ~blocked[qj[ok], qi[ok]]
+            ok[ok] &= ~self.lethal[qj[ok], qi[ok]] & ~self._obstacles[qj[ok], qi[ok]]
             if di and dj:           # no corner cutting past a forbidden (static) cell
                 ok[ok] &= ~self.lethal[j[ok], qi[ok]] & ~self.lethal[qj[ok], i[ok]]
             qc = qj[ok] * w + qi[ok]
