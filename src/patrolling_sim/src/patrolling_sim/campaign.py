@@ -201,6 +201,13 @@ class _ClusterStart:
         return self._cluster
 
 
+def _map(client, fn, *iterables, **kw):
+    """``client.map(fn, *iterables, pure=False, **kw)``, called from this short function on
+    purpose: Dask records the source of the function that calls ``map`` (for its dashboard),
+    and tokenising ``run_campaign``'s long body took 0.09 s of every campaign's start."""
+    return client.map(fn, *iterables, pure=False, **kw)
+
+
 def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                  workers: Optional[int] = None, retry_failed: bool = False,
                  limit: Optional[int] = None, stream=sys.stdout,
@@ -295,13 +302,12 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                 for size in chunks(len(todo), n_workers):
                     groups.append(todo[i:i + size])
                     i += size
-                flist = client.map(run_graph_chunk, [[r.config for r in g] for g in groups],
-                                   pure=False)
+                flist = _map(client, run_graph_chunk, [[r.config for r in g] for g in groups])
             else:
                 groups = [[r] for r in todo]
-                flist = client.map(run_ros_task, [r.config for r in todo],
-                                   [paths.data_root()] * len(todo), pure=False,
-                                   resources={"experiment": 1} if cluster else None)
+                flist = _map(client, run_ros_task, [r.config for r in todo],
+                             [paths.data_root()] * len(todo),
+                             resources={"experiment": 1} if cluster else None)
             futs = dict(zip(flist, groups))
             progress = _Progress(len(todo), skipped, stream)
             next_free = {}                      # result prefix -> first suffix to test
