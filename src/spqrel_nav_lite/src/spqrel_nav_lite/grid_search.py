@@ -85,7 +85,10 @@ def astar(lethal, obstacles, cost, heur, res, s, g):
 
     Returns:
         (cells, cost, expanded): the path's cell indices from ``s`` to ``g`` (int64 array)
-        and its cost, or (None, inf, expanded) if ``g`` cannot be reached.
+        and its cost, or (None, inf, expanded) if ``g`` cannot be reached. Among equally
+        cheap paths it is the one a Dijkstra field from ``g`` gives (each cell linked to its
+        neighbour nearest ``g``: the path leaves an obstacle-free path as early as it can);
+        ``expanded`` counts the cells of both searches (csrc/grid_astar.cpp).
 
     Raises:
         RuntimeError: the library is not built (see :func:`load`), or bad arguments.

@@ -209,6 +209,7 @@ class GoalExecution:
         last_plan = rospy.get_time()
         best_remaining, best_time = math.inf, rospy.get_time()
         blocked_since = None
+        blocked_by = "no path around it"    # the last cause of blocked_since, for the log
         recoveries = 0
         feedback = MoveBaseFeedback()
         feedback.base_position.header.frame_id = self.global_frame
@@ -245,6 +246,7 @@ class GoalExecution:
                 except PlanningError as e:
                     if blocked_since is None:
                         blocked_since = now
+                    blocked_by = "no path around it"
                     rospy.logdebug("%smove_base: replanning failed: %s", self.robot_ns, e)
             cmd = compute_command(pose, self.v, self.w, path, index, near, dt, self.cp, dynamic)
             index = cmd.index
@@ -259,14 +261,15 @@ class GoalExecution:
                 best_remaining, best_time = remaining, now
             if cmd.blocked:
                 blocked_since = blocked_since if blocked_since is not None else now
+                blocked_by = "stopped in front of it"
             elif self.v > 0.05:
                 blocked_since = None
             stuck = (blocked_since is not None and now - blocked_since > self.blocked_patience) \
                 or now - best_time > self.controller_patience
             if stuck:
                 recoveries += 1
-                reason = "blocked by an obstacle" if blocked_since is not None else \
-                    f"no progress for {self.controller_patience:.0f} s"
+                reason = f"blocked by an obstacle ({blocked_by})" if blocked_since is not None \
+                    else f"no progress for {self.controller_patience:.0f} s"
                 if recoveries > self.max_recoveries:
                     raise Aborted(f"{reason}; giving up after {self.max_recoveries} recoveries")
                 rospy.loginfo("%smove_base: %s, recovery %d/%d", self.robot_ns, reason,

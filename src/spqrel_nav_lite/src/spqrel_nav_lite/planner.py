@@ -31,9 +31,12 @@ are replaced by one A* (``obstacle_search="astar"``, the default;
 obstacle-free function (or the moved goal's bound), which obstacles can only raise (a
 consistent heuristic: the path is optimal). It expands little more than the detour's cells,
 where a window search relaxed every cell of its window (32 robots on cumberland:
-docs/benchmarks/runner.md, "A* around other robots"). The box search still comes first: it
-is cheap, and A* alone, which settles ties between equally short paths differently, gave the
-12-robot grid runs more stops for other robots. The A* field holds the path (exact) and a
+docs/benchmarks/runner.md, "A* around other robots"). Among equally cheap paths it returns
+the one a Dijkstra field from the goal gives, as the box and window searches do: A*'s own
+tie-breaking followed the obstacle-free path up to the other robot and swerved at the last
+moment, which gave the 12-robot grid runs a third more stops in front of other robots and a
+9 % higher idleness (docs/navigation.md). The box search still comes first: it is cheap.
+The A* field holds the path (exact) and a
 one-cell band beside it (back onto the path: an upper bound), so that a robot following the
 path, often a cell off it, keeps walking the same path and gets its remaining cost; a robot
 outside the band is searched again from where it is.
