@@ -428,6 +428,19 @@ def shipped_planner(name, seed, search="window"):
     return p, np.random.default_rng(seed), np.argwhere(~p.lethal)
 
 
+def random_free_plan(p, rng, free):
+    """(start, goal, goal cell (i, j), obstacle-free path) between two random open cells of
+    ``free`` (rows (j, i)), the planner's temporary obstacles cleared first; None when the
+    two cells are not connected."""
+    (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
+    start, goal = p.cell_center(ai, aj), p.cell_center(bi, bj)
+    p.clear_obstacles()
+    try:
+        return start, goal, (bi, bj), p.plan(start, goal)
+    except PlanningError:
+        return None
+
+
 def test_astar_library_is_built_with_the_workspace():
     """Once catkin built the workspace (as `make test` does), the planner must find the C++
     A* and use it by default; without a build (`make unit`) it falls back to scipy."""
@@ -459,13 +472,10 @@ def test_planner_astar_around_robots_is_exact(name):
     assert p.astar
     checked = searched = moved = band = 0
     for _ in range(40):
-        (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
-        start, goal = p.cell_center(ai, aj), p.cell_center(bi, bj)
-        p.clear_obstacles()
-        try:
-            base = p.plan(start, goal)
-        except PlanningError:
+        drawn = random_free_plan(p, rng, free)
+        if drawn is None:
             continue
+        start, goal, (bi, bj), base = drawn
         pts = base[rng.integers(len(base), size=rng.integers(1, 4))] + \
             rng.normal(0.0, 0.3, (1, 2))
         on_goal = rng.random() < 0.3
@@ -538,13 +548,10 @@ def test_planner_astar_leaves_the_free_path_as_early_as_dijkstra():
 
     astar, ref = [], []
     while len(astar) < 25:
-        (aj, ai), (bj, bi) = free[rng.integers(len(free), size=2)]
-        start, goal = p.cell_center(ai, aj), p.cell_center(bi, bj)
-        p.clear_obstacles()
-        try:
-            base = p.plan(start, goal)
-        except PlanningError:
+        drawn = random_free_plan(p, rng, free)
+        if drawn is None:
             continue
+        start, goal, (bi, bj), base = drawn
         arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(base, axis=0).T))])
         if arc[-1] < 4.0:
             continue
