@@ -121,7 +121,7 @@ class PatrolAgent(Effects):
         def fire(_event):
             with self.lock:           # the creator holds the lock until holder is filled
                 self.timers.discard(holder.get("t"))
-                if rospy.is_shutdown():
+                if rospy.core.is_shutdown_requested():
                     return
                 try:
                     fn()
@@ -143,7 +143,11 @@ class PatrolAgent(Effects):
             self.clamp_warned = True
             rospy.logwarn("robot %d: /results payload clamped to int16 (type %s)", self.id,
                           data[1] if len(data) > 1 else "?")
-        self.results_pub.publish(Int16MultiArray(data=data))
+        try:
+            self.results_pub.publish(Int16MultiArray(data=data))
+        except rospy.ROSException:
+            if not rospy.core.is_shutdown_requested():
+                raise       # else closed by the node's stop (see _on_feedback): nothing to tell
 
     def send_goal(self, vertex, seq):
         """A move_base goal to ``vertex`` (replaces the active goal: a self-cancel)."""
@@ -285,6 +289,12 @@ class PatrolAgent(Effects):
             self.core.on_goal_result(seq, status == GoalStatus.SUCCEEDED)
 
     def _on_feedback(self, fb, seq):
+        # rospy closes its topics in a pre-shutdown hook, while is_shutdown() is still False
+        # (only is_shutdown_requested() is True): move_base's feedback arriving then made the
+        # publish below raise "publish() to a closed topic", and rospy logged a traceback for
+        # it at the end of almost every run
+        if rospy.core.is_shutdown_requested():
+            return
         p = fb.base_position.pose.position
         odom = Odometry()
         odom.header.frame_id = self.frame_tag
@@ -292,7 +302,12 @@ class PatrolAgent(Effects):
         odom.pose.pose.position.y = p.y
         with self.lock:
             if self.scenario.may_publish():
-                self.positions_pub.publish(odom)
+                try:
+                    self.positions_pub.publish(odom)
+                except rospy.ROSException:
+                    if rospy.core.is_shutdown_requested():
+                        return      # the node began to stop after the check above
+                    raise
             self.core.on_feedback(seq, p.x, p.y)
 
 
