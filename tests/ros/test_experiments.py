@@ -94,10 +94,10 @@ def check_complete_run(prefix, out, n_vertices, team_size, alg):
         assert all(b - a >= 4.0 for a, b in zip(times, times[1:])), (rid, times)
     assert os.path.isdir(prefix + "_logs") and os.listdir(prefix + "_logs")
     # no node printed a traceback, also not while the run stopped (the agents' late
-    # move_base feedback did, at the end of every run, until 2026-11-28)
+    # move_base feedback did, at the end of most runs, until 2026-11-28)
     with open(os.path.join(prefix + "_logs", "roslaunch.log"), errors="replace") as f:
         log = f.read()
-    assert "Traceback" not in log, log[log.index("Traceback") - 300:][:3000]
+    assert "Traceback" not in log, log[max(0, log.find("Traceback") - 300):][:3000]
     assert master_ports_closed(out)
     assert own_processes(prefix) == [], "processes of the run survived"
     return info

@@ -6,9 +6,10 @@
 // cached and shared by the robots of a process). Temporary obstacles only remove cells, so
 // d_free is a consistent lower bound of the cost with them: A* from the robot's cell guided
 // by it finds the optimal cost and expands little more than the cells of the detour the
-// obstacles force; among the equally cheap paths the one returned is the one a Dijkstra
-// field from the goal gives (a second, small search over the cheapest paths' cells, below) (a search from the goal would have no such bound of the cost to the
+// obstacles force (a search from the goal would have no such bound of the cost to the
 // robot's cell: |d_free(s) - d_free(x)| ties every cell nearer the goal than the robot).
+// Among the equally cheap paths it returns the one a Dijkstra field from the goal gives: a
+// second, small search over the cheapest paths' cells (below).
 // scipy's Dijkstra (the planner's fallback without this library, see grid_search.py) must
 // search a window around start and goal, or the whole map, and the window's graph must be
 // built first; no library in Debian offers A* with a per-cell heuristic on this graph (the
