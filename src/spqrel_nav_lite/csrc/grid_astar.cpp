@@ -52,6 +52,25 @@ struct LazyArray {
   LazyArray& operator=(const LazyArray&) = delete;
 };
 
+// Calls f(nb, weight) for every move of the planner's cell graph out of cell c (w x h grid):
+// the 8 neighbours inside the grid, a diagonal only if neither cell it passes is lethal, the
+// weight length * 0.5 * (cost[c] + cost[nb]). Whether nb itself is usable is the caller's test.
+template <typename F>
+inline void for_each_move(int64_t c, int64_t w, int64_t h, const uint8_t* lethal,
+                          const double* cost, double len_straight, double len_diag, F&& f) {
+  static const int DI[8] = {-1, 0, 1, -1, 1, -1, 0, 1};
+  static const int DJ[8] = {-1, -1, -1, 0, 0, 1, 1, 1};
+  const int64_t ci = c % w, cj = c / w;
+  for (int k = 0; k < 8; ++k) {
+    const int64_t ni = ci + DI[k], nj = cj + DJ[k];
+    if (ni < 0 || ni >= w || nj < 0 || nj >= h) continue;
+    const bool diagonal = DI[k] != 0 && DJ[k] != 0;
+    if (diagonal && (lethal[cj * w + ni] || lethal[nj * w + ci])) continue;
+    const int64_t nb = nj * w + ni;
+    f(nb, (diagonal ? len_diag : len_straight) * 0.5 * (cost[c] + cost[nb]));
+  }
+}
+
 }  // namespace
 
 extern "C" {
@@ -78,8 +97,6 @@ int64_t spqrel_grid_astar(int64_t w, int64_t h, const uint8_t* lethal, const uin
   LazyArray<int32_t> parent(n);  // the previous cell of the best path found so far
   LazyArray<uint8_t> state(n);
   if (!gval.p || !parent.p || !state.p) return -2;
-  static const int DI[8] = {-1, 0, 1, -1, 1, -1, 0, 1};
-  static const int DJ[8] = {-1, -1, -1, 0, 0, 1, 1, 1};
   std::priority_queue<Entry> open;
   gval.p[s] = 0.0;
   state.p[s] = OPEN;
@@ -97,23 +114,17 @@ int64_t spqrel_grid_astar(int64_t w, int64_t h, const uint8_t* lethal, const uin
       break;
     }
     const double gc = gval.p[c];
-    const int64_t ci = c % w, cj = c / w;
-    for (int k = 0; k < 8; ++k) {
-      const int64_t ni = ci + DI[k], nj = cj + DJ[k];
-      if (ni < 0 || ni >= w || nj < 0 || nj >= h) continue;
-      const int64_t nb = nj * w + ni;
-      if (lethal[nb] || obstacles[nb] || state.p[nb] == CLOSED) continue;
-      const bool diagonal = DI[k] != 0 && DJ[k] != 0;
-      if (diagonal && (lethal[cj * w + ni] || lethal[nj * w + ci])) continue;
+    for_each_move(c, w, h, lethal, cost, len_straight, len_diag, [&](int64_t nb, double wt) {
+      if (lethal[nb] || obstacles[nb] || state.p[nb] == CLOSED) return;
       const double hn = heur[nb];
-      if (!std::isfinite(hn)) continue;     // no path from there to g at all
-      const double ng = gc + (diagonal ? len_diag : len_straight) * 0.5 * (cost[c] + cost[nb]);
-      if (state.p[nb] == OPEN && ng >= gval.p[nb]) continue;
+      if (!std::isfinite(hn)) return;     // no path from there to g at all
+      const double ng = gc + wt;
+      if (state.p[nb] == OPEN && ng >= gval.p[nb]) return;
       state.p[nb] = OPEN;
       gval.p[nb] = ng;
       parent.p[nb] = static_cast<int32_t>(c);
       open.push({ng + hn, hn, nb});
-    }
+    });
   }
   if (!found) return 0;
   // The path. A* settles ties between equally cheap paths in favour of the cells its
@@ -154,24 +165,18 @@ int64_t spqrel_grid_astar(int64_t w, int64_t h, const uint8_t* lethal, const uin
       break;
     }
     const double dc = back.p[c];
-    const int64_t ci = c % w, cj = c / w;
-    for (int k = 0; k < 8; ++k) {
-      const int64_t ni = ci + DI[k], nj = cj + DJ[k];
-      if (ni < 0 || ni >= w || nj < 0 || nj >= h) continue;
-      const int64_t nb = nj * w + ni;
+    for_each_move(c, w, h, lethal, cost, len_straight, len_diag, [&](int64_t nb, double wt) {
       // only cells A* reached (their cost from s is known: exact if closed, else an upper
-      // bound, which can only leave a tied cell out); the same moves as the forward search
-      if (state.p[nb] == UNSEEN || bstate.p[nb] == CLOSED) continue;
-      const bool diagonal = DI[k] != 0 && DJ[k] != 0;
-      if (diagonal && (lethal[cj * w + ni] || lethal[nj * w + ci])) continue;
-      const double nd = dc + (diagonal ? len_diag : len_straight) * 0.5 * (cost[c] + cost[nb]);
-      if (nd + gval.p[nb] > best + slack) continue;     // not on a cheapest path
-      if (bstate.p[nb] == OPEN && nd >= back.p[nb]) continue;
+      // bound, which can only leave a tied cell out); the moves are symmetric
+      if (state.p[nb] == UNSEEN || bstate.p[nb] == CLOSED) return;
+      const double nd = dc + wt;
+      if (nd + gval.p[nb] > best + slack) return;     // not on a cheapest path
+      if (bstate.p[nb] == OPEN && nd >= back.p[nb]) return;
       bstate.p[nb] = OPEN;
       back.p[nb] = nd;
       next.p[nb] = static_cast<int32_t>(c);
       queue.push({nd, nb});
-    }
+    });
   }
   if (!reached) {   // not expected (A*'s own path qualifies): A*'s path, then
     for (int64_t c = g; c != s; c = parent.p[c]) next.p[parent.p[c]] = static_cast<int32_t>(c);

@@ -36,10 +36,10 @@ the one a Dijkstra field from the goal gives, as the box and window searches do:
 tie-breaking followed the obstacle-free path up to the other robot and swerved at the last
 moment, which gave the 12-robot grid runs a third more stops in front of other robots and a
 9 % higher idleness (docs/navigation.md). The box search still comes first: it is cheap.
-The A* field holds the path (exact) and a
-one-cell band beside it (back onto the path: an upper bound), so that a robot following the
-path, often a cell off it, keeps walking the same path and gets its remaining cost; a robot
-outside the band is searched again from where it is.
+The A* field holds the path (exact) and a one-cell band beside it (back onto the path: an
+upper bound), so that a robot following the path, often a cell off it, keeps walking the
+same path and gets its remaining cost; a robot outside the band is searched again from
+where it is.
 """
 import math
 
