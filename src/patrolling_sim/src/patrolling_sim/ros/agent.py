@@ -143,11 +143,7 @@ class PatrolAgent(Effects):
             self.clamp_warned = True
             rospy.logwarn("robot %d: /results payload clamped to int16 (type %s)", self.id,
                           data[1] if len(data) > 1 else "?")
-        try:
-            self.results_pub.publish(Int16MultiArray(data=data))
-        except rospy.ROSException:
-            if not rospy.core.is_shutdown_requested():
-                raise       # else closed by the node's stop (see _on_feedback): nothing to tell
+        publish_unless_stopping(self.results_pub, Int16MultiArray(data=data))
 
     def send_goal(self, vertex, seq):
         """A move_base goal to ``vertex`` (replaces the active goal: a self-cancel)."""
@@ -289,26 +285,33 @@ class PatrolAgent(Effects):
             self.core.on_goal_result(seq, status == GoalStatus.SUCCEEDED)
 
     def _on_feedback(self, fb, seq):
-        # rospy closes its topics in a pre-shutdown hook, while is_shutdown() is still False
-        # (only is_shutdown_requested() is True): move_base's feedback arriving then made the
-        # publish below raise "publish() to a closed topic", and rospy logged a traceback for
-        # it at the end of almost every run
         if rospy.core.is_shutdown_requested():
-            return
+            return          # move_base's feedback still arriving while the node stops
         p = fb.base_position.pose.position
         odom = Odometry()
         odom.header.frame_id = self.frame_tag
         odom.pose.pose.position.x = p.x
         odom.pose.pose.position.y = p.y
         with self.lock:
-            if self.scenario.may_publish():
-                try:
-                    self.positions_pub.publish(odom)
-                except rospy.ROSException:
-                    if rospy.core.is_shutdown_requested():
-                        return      # the node began to stop after the check above
-                    raise
+            if self.scenario.may_publish() and \
+                    not publish_unless_stopping(self.positions_pub, odom):
+                return
             self.core.on_feedback(seq, p.x, p.y)
+
+
+def publish_unless_stopping(pub, msg):
+    """``pub.publish(msg)``; False, without it, if the node is stopping. rospy closes its
+    topics in a pre-shutdown hook, while ``is_shutdown()`` is still False (only
+    ``is_shutdown_requested()`` is True), so a callback publishing in that moment (move_base's
+    feedback, a visit report) got "publish() to a closed topic", and rospy logged a traceback
+    for it at the end of almost every run. Any other failure is raised."""
+    try:
+        pub.publish(msg)
+        return True
+    except rospy.ROSException:
+        if rospy.core.is_shutdown_requested():
+            return False
+        raise
 
 
 def main(argv=None):
