@@ -24,7 +24,7 @@ from std_srvs.srv import Empty, EmptyResponse
 from spqrel_nav_lite.controller import ControllerParams
 from spqrel_nav_lite.geometry import PoseHistory, compose, relative
 from spqrel_nav_lite.move_base_goal import GoalExecution
-from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world
+from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_frame, to_world
 from spqrel_nav_lite.particle_filter import LikelihoodField
 from spqrel_nav_lite.planner import OBSTACLE_SEARCHES, GlobalPlanner
 from spqrel_nav_lite.planner_grid import PlannerGrid
@@ -212,17 +212,24 @@ class MoveBase(GoalExecution):
 
     def pose(self):
         """Current pose in the map frame, or None."""
+        return self.pose_at(None)
+
+    def pose_at(self, stamp):
+        """Map pose at ROS time ``stamp`` (s; None: the latest odometry's time): the
+        localisation composed with the odometry then (interpolated, clamped to the odometry
+        kept), or None."""
         with self.lock:
             if self.loc is None:
                 return None
             latest = self.odom.latest()
             if latest is None:
                 return None
-            loc, odom_then, stamp = self.loc
+            loc, odom_then, loc_stamp = self.loc
             if odom_then is None:
-                odom_then = self.odom.at(stamp)
-                self.loc = (loc, odom_then, stamp)
-            return compose(loc, relative(odom_then, latest[1]))
+                odom_then = self.odom.at(loc_stamp)
+                self.loc = (loc, odom_then, loc_stamp)
+            odom = latest[1] if stamp is None else self.odom.at(stamp)
+            return compose(loc, relative(odom_then, odom))
 
     # -- helpers -----------------------------------------------------------------------------------
     def send(self, v, w):
@@ -236,7 +243,16 @@ class MoveBase(GoalExecution):
 
     def laser(self, pose):
         """(points in the robot frame within 3 m, the unexplained ones among them in the
-        robot frame)."""
+        robot frame), from the latest scan; ``pose`` is the robot's map pose now.
+
+        The scan is placed in the map with the robot's pose at the scan's stamp
+        (:meth:`pose_at`), as a costmap looks up tf at the scan's time, and its points are
+        then seen from ``pose``. The control cycle starts on odometry, and the scan of the
+        same simulator step often arrives a moment later (on its own connection), so the
+        cycle usually has the scan of the step before: placed with the current pose it was
+        turned by the robot's rotation over that step (0.1 rad at 1 rad/s puts a wall 2.5 m
+        away 0.25 m off, the ``unexplained_dist``), and walls became temporary obstacles
+        (docs/navigation.md, "Scans at their own time")."""
         scan = self.scan
         if scan is None:
             return np.zeros((0, 2)), np.zeros((0, 2))
@@ -244,14 +260,17 @@ class MoveBase(GoalExecution):
         pts, r, _ = scan_points(scan.ranges, scan.angle_min, scan.angle_increment,
                                 scan.range_min, scan.range_max, self.laser_x, step,
                                 max_range=max(3.0, self.obstacle_range))
+        seen_from = self.pose_at(scan.header.stamp.to_sec()) or pose
+        world = to_world(pts, seen_from)
+        if seen_from != pose:
+            pts = to_frame(world, pose)
         near3 = r <= 3.0
         near = pts[near3]
-        world = to_world(pts, pose)
         strange = self.field.lookup(world[:, 0], world[:, 1]) > self.unexplained_dist
         unexplained = world[strange & (r <= self.obstacle_range)]
         now = rospy.get_time()
         with self.lock:
-            sensor = compose(pose, (self.laser_x, 0.0, 0.0))[:2]
+            sensor = compose(seen_from, (self.laser_x, 0.0, 0.0))[:2]
             self.memory.clear_seen_through(sensor, world, now)
             self.memory.expire(now)
             self.memory.add(unexplained, now)

@@ -51,6 +51,18 @@ def to_world(points, pose):
     return out
 
 
+def to_frame(points_world, pose):
+    """The inverse of :func:`to_world`: world points seen from ``pose`` (its frame)."""
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    p = np.asarray(points_world, dtype=float).reshape(-1, 2)
+    dx, dy = p[:, 0] - x, p[:, 1] - y
+    out = np.empty_like(p)
+    out[:, 0] = c * dx + s * dy
+    out[:, 1] = -s * dx + c * dy
+    return out
+
+
 class ObstacleMemory:
     """Temporary obstacles: cells (size ``cell``) holding an unexplained laser point, each
     forgotten ``timeout`` seconds after it was last seen, or when a later beam passes through it
