@@ -116,6 +116,9 @@ class MoveBase(GoalExecution):
         self.last_path = None
         self.plan_pub = rospy.Publisher(ns + "plan", Path, queue_size=1, latch=True,
                                         subscriber_listener=_PlanOnSubscribe(self))
+        # set before the first subscription: a callback may run before __init__ returns
+        # (odometry arriving at once made on_odom raise AttributeError, seen in a 16-robot run)
+        self.control_loop = control_loop
         rospy.Subscriber(r + "odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
         if subscribe_pose:
             rospy.Subscriber(r + "amcl_pose", PoseWithCovarianceStamped, self.on_loc,
@@ -123,7 +126,6 @@ class MoveBase(GoalExecution):
         rospy.Subscriber(r + "base_scan", SCAN, self.on_scan, queue_size=1,
                          tcp_nodelay=True, buff_size=1 << 20)
         rospy.Service(ns + "clear_costmaps", Empty, self.on_clear)
-        self.control_loop = control_loop
         self.server = actionlib.SimpleActionServer(
             r + "move_base", MoveBaseAction, auto_start=False,
             execute_cb=self.execute if control_loop is None else None)
