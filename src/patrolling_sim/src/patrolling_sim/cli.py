@@ -18,12 +18,25 @@ class CliParser(argparse.ArgumentParser):
         sys.exit(2)
 
 
+class LowercaseLevelFormatter(logging.Formatter):
+    """``warning: message`` lines: the level in lower case on this handler only. Renaming
+    the levels process-wide (``logging.addLevelName``) broke rosgraph's log handler in the
+    runner's own ROS node, which looks records up by the standard names: a rospy warning
+    there raised ``KeyError: 'warning'`` in rospy's thread."""
+
+    def format(self, record):
+        name = record.levelname
+        record.levelname = name.lower()
+        try:
+            return super().format(record)
+        finally:
+            record.levelname = name
+
+
 def setup_logging(verbose=False):
-    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
-                        format="%(levelname)s: %(message)s",
-                        stream=sys.stderr)
-    for lvl in (logging.WARNING, logging.ERROR, logging.INFO, logging.DEBUG):
-        logging.addLevelName(lvl, logging.getLevelName(lvl).lower())
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(LowercaseLevelFormatter("%(levelname)s: %(message)s"))
+    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, handlers=[handler])
 
 
 def run_main(main, prog, argv=None):
