@@ -15,6 +15,8 @@ from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world
 from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter, first_in_bins
 from spqrel_nav_lite.planner import GlobalPlanner, PlanningError, path_blocked, path_length
 
+from nav_common import fake_scan
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 
 
@@ -209,21 +211,6 @@ def test_front_clearance_straight_and_empty():
 
 
 # -- particle filter --------------------------------------------------------------------------
-def fake_scan(m, pose, angles, laser_x=0.15, rmax=20.0):
-    """Exact-ish ray cast by small steps (test helper)."""
-    sx, sy = pose[0] + laser_x * math.cos(pose[2]), pose[1] + laser_x * math.sin(pose[2])
-    out = []
-    for a in angles:
-        t = 0.0
-        while t < rmax:
-            x, y = sx + t * math.cos(pose[2] + a), sy + t * math.sin(pose[2] + a)
-            if m.cell_state(x, y) != "free":
-                break
-            t += m.resolution / 2
-        out.append(t)
-    return np.array(out)
-
-
 def asym_room():
     m = room(w=8, h=5, wall_x=5.0, gap=(0.1, 1.5))
     d = m.data.copy()

@@ -16,6 +16,8 @@ from spqrel_nav_lite.move_base_node import MoveBase  # noqa: E402
 from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world  # noqa: E402
 from spqrel_nav_lite.particle_filter import LikelihoodField  # noqa: E402
 
+from nav_common import fake_scan  # noqa: E402
+
 RES = 0.05
 LASER_X = 0.15
 
@@ -35,23 +37,11 @@ def corridor():
     return OccupancyMap(d, RES)
 
 
-def ray_cast(m, pose, angles, rmax=20.0):
-    sx, sy = pose[0] + LASER_X * math.cos(pose[2]), pose[1] + LASER_X * math.sin(pose[2])
-    out = []
-    for a in angles:
-        t = 0.0
-        while t < rmax and m.cell_state(sx + t * math.cos(pose[2] + a),
-                                        sy + t * math.sin(pose[2] + a)) == "free":
-            t += RES / 4
-        out.append(t)
-    return out
-
-
 def scan_from(m, pose, stamp):
     """A 181-beam scan (-90 to +90 degrees) taken at ``stamp`` from map pose ``pose``."""
     angle_min, inc = -math.pi / 2, math.radians(1.0)
     scan = LaserScan(angle_min=angle_min, angle_increment=inc, range_min=0.05, range_max=20.0,
-                     ranges=ray_cast(m, pose, angle_min + inc * np.arange(181)))
+                     ranges=fake_scan(m, pose, angle_min + inc * np.arange(181), LASER_X))
     scan.header.stamp = rospy.Time.from_sec(stamp)
     return scan
 
