@@ -50,6 +50,12 @@ def test_pose_history_interpolates_and_clamps():
     h.add(1.0, (1.0, 2.0, 0.5))
     assert np.allclose(h.at(0.5), (0.5, 1.0, 0.25))
     assert h.at(5.0) == (1.0, 2.0, 0.5) and h.at(-1.0) == (0.0, 0.0, 0.0)
+    # at a stored stamp, the stored pose itself (no interpolation rounding)
+    rng = np.random.default_rng(5)
+    for i in range(11, 200):
+        pose = (rng.uniform(-50.0, 50.0), rng.uniform(-50.0, 50.0), rng.uniform(-3.0, 3.0))
+        h.add(i * 0.1, pose)
+        assert h.at(i * 0.1) is pose and h.at(i * 0.1) == h.latest()[1]
 
 
 def test_odom_correction_recovers_truth():

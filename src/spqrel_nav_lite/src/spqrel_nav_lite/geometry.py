@@ -59,15 +59,18 @@ class PoseHistory:
         return (self.stamps[-1], self.poses[-1]) if self.stamps else None
 
     def at(self, stamp):
-        """Pose at ``stamp`` (linear interpolation between neighbours, clamped at the ends),
-        or None if empty."""
+        """Pose at ``stamp`` (the stored pose itself at a stored stamp, else linear
+        interpolation between neighbours, clamped at the ends), or None if empty. Exact at a
+        stored stamp, so a lookup at the latest odometry's stamp gives the very pose
+        ``latest()`` gives (interpolating with weight 1 differed in the last bits in about a
+        third of the cases), and move_base's scan of the current step needs no transform."""
         if not self.stamps:
             return None
         k = bisect.bisect_left(self.stamps, stamp)
-        if k <= 0:
-            return self.poses[0]
         if k >= len(self.stamps):
             return self.poses[-1]
+        if k <= 0 or self.stamps[k] == stamp:
+            return self.poses[k]
         t0, t1 = self.stamps[k - 1], self.stamps[k]
         p0, p1 = self.poses[k - 1], self.poses[k]
         f = 0.0 if t1 <= t0 else (stamp - t0) / (t1 - t0)
