@@ -115,6 +115,26 @@ def timed_loop(path, store_out=None):
     return time.perf_counter() - t0, time.process_time() - c0
 
 
+def file_creation_ms(d, n=300):
+    """(wall ms, kernel CPU ms) of creating one small file as the client does (create, write
+    4 kB, close, rename), over ``n`` new files in a new folder under ``d``. The files stay
+    until the benchmark's folder is removed: removing them here would slow down the very
+    creations measured next (see the printed note)."""
+    sub = os.path.join(d, "file_creation")
+    os.makedirs(sub)
+    data = b"x" * 4096
+    s0 = resource.getrusage(resource.RUSAGE_SELF).ru_stime
+    t0 = time.perf_counter()
+    for i in range(n):
+        part = os.path.join(sub, f"f{i}.csv.part")
+        fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        os.write(fd, data)
+        os.close(fd)
+        os.replace(part, part[:-5])
+    wall = time.perf_counter() - t0
+    return 1000 * wall / n, 1000 * (resource.getrusage(resource.RUSAGE_SELF).ru_stime - s0) / n
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=1000)
@@ -133,6 +153,7 @@ def main():
              "campaign of 1 run (fixed cost)", "loop in one process, storing the files")
     got = {name: [] for name in names}
     try:
+        creation = file_creation_ms(tmp)
         path = campaign_file(tmp, a)
         one_path = campaign_file(tmp, a, 1, "one.yaml")
         for i in range(a.repeat):          # interleaved: see the module's docstring
@@ -154,7 +175,12 @@ def main():
           f"{uptime[0]:.2f}, "
           f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; "
           f"{n} runs of {a.map}/{a.robots} robots/{a.alg}/{a.duration:.0f} s, "
-          f"fastest of {a.repeat}\n")
+          f"fastest of {a.repeat}")
+    print(f"File creation at the start: {creation[0]:.3f} ms per file ({creation[1]:.3f} ms of "
+          "kernel CPU). A campaign's client creates 9 files per graph run; on an ext4 file system "
+          "without a journal each creation costs about 10x more (0.4-0.6 ms instead of 0.04 on "
+          "the VM of docs/benchmarks/campaign.md) for minutes after many files were deleted, "
+          "which lowers the 2-worker figures.\n")
     print(f"| how | wall (s) | runs/s | per run (ms) | CPU (s) | wall range of {a.repeat} (s) | "
           "median (s) |")
     print("|---|---|---|---|---|---|---|")

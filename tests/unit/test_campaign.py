@@ -56,13 +56,41 @@ def test_bad_campaign_files_fail_with_one_line_naming_the_key(tmp_path, change, 
     assert words in msg and "\n" not in msg and "c.yaml" in msg
 
 
-def test_bad_campaign_file_cli_exit_2_nothing_written(tmp_path):
+def _session_members(sid):
+    """Ids of the live (not zombie) processes of session ``sid`` (Linux /proc)."""
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[3]) == sid and fields[0] != "Z":
+                out.append(int(d))
+    return out
+
+
+@pytest.mark.parametrize("text, words", [("grid: [unclosed", "not valid YAML"),
+                                         ("mode: graph\ngrid: {map: [atlantis]}\n",
+                                          "grid.map: unknown map 'atlantis'")])
+def test_bad_campaign_file_cli_exit_2_nothing_written(tmp_path, text, words):
+    """One line, exit 2, no campaign folder; and nothing left running: the command starts
+    its workers' forkserver before it validates the file (to overlap their imports), and that
+    server must end with it."""
     out = tmp_path / "out"
-    p = subprocess.run([sys.executable, SCRIPT, _write(tmp_path, "grid: [unclosed"),
-                        "--out", str(out)], capture_output=True, text=True, env=_env())
+    p = subprocess.Popen([sys.executable, SCRIPT, _write(tmp_path, text), "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(),
+                         start_new_session=True)
+    _, err = p.communicate()
     assert p.returncode == 2
-    assert p.stderr.count("\n") == 1 and "not valid YAML" in p.stderr
+    assert err.count("\n") == 1 and words in err, err
     assert not out.exists()
+    for _ in range(100):                     # the server notices its client's exit at once
+        if not _session_members(p.pid):
+            break
+        time.sleep(0.1)
+    assert not _session_members(p.pid)
 
 
 def test_validation_warnings_are_given_once_with_their_count(tmp_path, capsys):
