@@ -105,11 +105,10 @@ def _env_for_workers():
     The workers are forked from a server process that has imported WORKER_PRELOAD once,
     not spawned (Dask's default, where each worker starts an interpreter and imports
     ``distributed`` and the simulator itself): the server starts here (from :func:`main`
-    before the campaign file is validated; again a no-op from :func:`run_campaign`), before
-    this process imports ``distributed``, and imports on the other core while this process
-    prepares, so
-    the cluster's start no longer waits for the workers' imports, and two workers import
-    once (docs/benchmarks/campaign.md). A forked worker gets the server's environment, so
+    before the campaign file is validated; called again from :func:`run_campaign`, it finds
+    the server running), before this process imports ``distributed``, and imports on the
+    other core while this process prepares, so the cluster's start no longer waits for the
+    workers' imports, and two workers import once (docs/benchmarks/campaign.md). A forked worker gets the server's environment, so
     Dask's ``pre-spawn-environ`` (which it sets just before spawning) is set here first."""
     src = os.path.join(paths.data_root(), "src", "patrolling_sim", "src")
     pp = os.environ.get("PYTHONPATH", "")
