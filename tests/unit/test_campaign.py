@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 import yaml
 
+import process_guard  # tests/process_guard.py (tests/conftest.py puts tests/ on the path)
 from patrolling_sim.campaign import load_campaign, load_state
 from patrolling_sim.errors import PatrolInputError
 
@@ -56,21 +57,6 @@ def test_bad_campaign_files_fail_with_one_line_naming_the_key(tmp_path, change, 
     assert words in msg and "\n" not in msg and "c.yaml" in msg
 
 
-def _session_members(sid):
-    """Ids of the live (not zombie) processes of session ``sid`` (Linux /proc)."""
-    out = []
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                with open(f"/proc/{d}/stat") as f:
-                    fields = f.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[3]) == sid and fields[0] != "Z":
-                out.append(int(d))
-    return out
-
-
 @pytest.mark.parametrize("text, words", [("grid: [unclosed", "not valid YAML"),
                                          ("mode: graph\ngrid: {map: [atlantis]}\n",
                                           "grid.map: unknown map 'atlantis'")])
@@ -87,10 +73,10 @@ def test_bad_campaign_file_cli_exit_2_nothing_written(tmp_path, text, words):
     assert err.count("\n") == 1 and words in err, err
     assert not out.exists()
     for _ in range(100):                     # the server notices its client's exit at once
-        if not _session_members(p.pid):
+        if not process_guard.members(p.pid):   # the command leads its own group
             break
         time.sleep(0.1)
-    assert not _session_members(p.pid)
+    assert not process_guard.members(p.pid)
 
 
 def test_validation_warnings_are_given_once_with_their_count(tmp_path, capsys):

@@ -108,8 +108,9 @@ def _env_for_workers():
     before the campaign file is validated; called again from :func:`run_campaign`, it finds
     the server running), before this process imports ``distributed``, and imports on the
     other core while this process prepares, so the cluster's start no longer waits for the
-    workers' imports, and two workers import once (docs/benchmarks/campaign.md). A forked worker gets the server's environment, so
-    Dask's ``pre-spawn-environ`` (which it sets just before spawning) is set here first."""
+    workers' imports, and two workers import once (docs/benchmarks/campaign.md). A forked
+    worker gets the server's environment, so Dask's ``pre-spawn-environ`` (which it sets
+    just before spawning) is set here first."""
     src = os.path.join(paths.data_root(), "src", "patrolling_sim", "src")
     pp = os.environ.get("PYTHONPATH", "")
     if src not in pp.split(os.pathsep):
