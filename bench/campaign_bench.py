@@ -116,21 +116,19 @@ def timed_loop(path, store_out=None):
 
 
 def file_creation_ms(d, n=300):
-    """(wall ms, kernel CPU ms) of creating one small file as the client does (create, write
-    4 kB, close, rename), over ``n`` new files in a new folder under ``d``. The files stay
-    until the benchmark's folder is removed: removing them here would slow down the very
-    creations measured next (see the printed note)."""
+    """(wall ms, kernel CPU ms) of creating one 4-kB file with the client's own writer
+    (``campaign_store._write_atomic``: create ``.part``, write, close, rename), over ``n`` new
+    files in a new folder under ``d``. The files stay until the benchmark's folder is
+    removed: removing them here would slow down the very creations measured next (see the
+    printed note)."""
+    from patrolling_sim.campaign_store import _write_atomic
     sub = os.path.join(d, "file_creation")
     os.makedirs(sub)
-    data = b"x" * 4096
+    text = "x" * 4096
     s0 = resource.getrusage(resource.RUSAGE_SELF).ru_stime
     t0 = time.perf_counter()
     for i in range(n):
-        part = os.path.join(sub, f"f{i}.csv.part")
-        fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
-        os.write(fd, data)
-        os.close(fd)
-        os.replace(part, part[:-5])
+        _write_atomic(os.path.join(sub, f"f{i}.csv"), text)
     wall = time.perf_counter() - t0
     return 1000 * wall / n, 1000 * (resource.getrusage(resource.RUSAGE_SELF).ru_stime - s0) / n
 
