@@ -9,7 +9,8 @@ older checkout (the "before" table) and this one.
 
 ``grid``: graph mode in the reference runs' world (grid, 4 robots at vertices 0, 13, 20, 11,
 600 s after GO, straight-line travel where the simulator offers it) against the original's
-own result files under tests/unit/data/original_runs/.
+own result files under tests/unit/data/original_runs/ and, for DTAP, the further runs of
+the original's agents under tests/unit/data/original_agents_abstract_world/.
 
 Usage:
     bench/fidelity_table.py maps [--src DIR] [--maps ...] [--robots 4] [--seeds 5]
@@ -102,8 +103,9 @@ def run_grid(a):
     raw = {}
     starts = fc.simulator(algs[0], 0).start_vertices
     print(f"grid, {fc.ROBOTS} robots at vertices {starts}, {fc.reference_duration():.0f} s "
-          f"after GO; original = mean of its runs (tests/unit/data/original_runs), ours = "
-          f"graph mode, mean of seeds 0..{a.seeds - 1}.\n")
+          f"after GO; original = mean of its runs (tests/unit/data/original_runs; DTAP also "
+          f"tests/unit/data/original_agents_abstract_world), ours = graph mode, mean of seeds "
+          f"0..{a.seeds - 1}.\n")
     print("| alg | original avg / max / visits | ours (graph) avg / max / visits | "
           "ours (ROS, abstract world) |")
     print("|---|---|---|---|")
@@ -114,7 +116,8 @@ def run_grid(a):
         mg = [statistics.mean(r[k] for r in ours) for k in range(3)]
         if ref:
             mo = [statistics.mean(r[k] for r in ref) for k in range(3)]
-            orig = f"{mo[0]:.1f} / {mo[1]:.1f} / {mo[2]:.0f}"
+            orig = f"{mo[0]:.1f} / {mo[1]:.1f} / {mo[2]:.0f}" + (
+                f" ({len(ref)} runs)" if len(ref) > 2 else "")
         else:
             orig = "(ours only)"
         print(f"| {alg} | {orig} | {mg[0]:.1f} / {mg[1]:.1f} / {mg[2]:.0f} | "

@@ -1,5 +1,7 @@
 """Shared by tests/unit/test_fidelity.py and bench/fidelity_table.py: the original's reference
-runs under tests/unit/data/original_runs/ (see the README there) and the same experiment in
+runs under tests/unit/data/original_runs/ (see the README there), the further runs of the
+original's own agents in this project's abstract world under
+tests/unit/data/original_agents_abstract_world/ (README there), and the same experiment in
 graph mode.
 
 Every expected figure is read from the original's own result files: the average idleness is
@@ -18,6 +20,10 @@ from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator
 from patrolling_sim.results import parse_info_line
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "original_runs", "grid_4")
+#: more runs of the original's agents (built from its source), in this project's abstract world
+#: with this project's monitor, for algorithms whose figures two reference runs cannot pin down
+AGENT_DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
+                          "original_agents_abstract_world", "grid_4")
 MAP, ROBOTS = "grid", 4
 
 
@@ -73,11 +79,17 @@ def usable_run_dirs(alg):
     return [d for d in run_dirs(alg) if not stopped_robots(d)]
 
 
+def agent_run_dirs(alg):
+    """The runs of the original's ``alg`` agents in our abstract world (sorted), [] if none."""
+    return sorted(glob.glob(os.path.join(AGENT_DATA, alg, "*", "")))
+
+
 def reference_figures(alg):
-    """[(avg idleness, max idleness, visits)] of every usable reference run of ``alg``
-    (runs in which a robot of the original stopped are left out: see stopped_robots)."""
+    """[(avg idleness, max idleness, visits)] of every usable run of the original's ``alg``:
+    the reference runs and the runs of its agents in our abstract world (runs in which a robot
+    of the original stopped are left out: see stopped_robots)."""
     out = []
-    for d in usable_run_dirs(alg):
+    for d in usable_run_dirs(alg) + [d for d in agent_run_dirs(alg) if not stopped_robots(d)]:
         i = info(d)
         out.append((statistics.mean(idleness_samples(d)), i["idl_max"], i["total_visits"]))
     return out

@@ -69,6 +69,20 @@ def test_reference_data_is_there():
     assert all(fc.reference_figures(a) for a in algs)
 
 
+def test_original_agent_runs_are_the_originals_dtap():
+    """The further DTAP runs of the original's agents (README of their folder) ran with the
+    original's shipped DTA parameters (the agents publish them, the monitor writes them into
+    info.csv), over the reference duration, and every robot patrolled."""
+    dirs = fc.agent_run_dirs("DTAP")
+    assert len(dirs) >= 20
+    for d in dirs:
+        i = fc.info(d)
+        assert (i["algorithm"], i["algorithm_params"]) == ("DTAP", "3,1,0,-2,0,0"), (d, i)
+        assert i["termination"] == "TIMEOUT" and i["sim_duration"] >= fc.reference_duration()
+        assert not fc.stopped_robots(d)
+    assert len(fc.reference_figures("DTAP")) == len(dirs) + len(fc.run_dirs("DTAP"))
+
+
 @pytest.mark.parametrize("alg", _cases("avg"))
 def test_average_idleness_as_the_original(ours, alg):
     _check(ours, alg, "avg")
