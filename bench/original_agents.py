@@ -183,7 +183,7 @@ def summary(label, runs):
     for k, name in enumerate(("avg", "max", "visits")):
         v = [r[k] for r in runs]
         sd = statistics.stdev(v) if len(v) > 1 else 0.0
-        parts.append(f"{name} {statistics.mean(v):.2f} (SD {sd:.2f}, {min(v):g}-{max(v):g})")
+        parts.append(f"{name} {statistics.mean(v):.2f} (SD {sd:.2f}, {min(v):.1f}-{max(v):.1f})")
     return f"{label}, {len(runs)} runs: " + "; ".join(parts)
 
 
