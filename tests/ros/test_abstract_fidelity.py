@@ -41,6 +41,11 @@ GRAPH_TOLERANCE = 0.05
 #: in 20 runs in this world (SD 24.6 s, tests/unit/data/original_agents_abstract_world/),
 #: ours 79.1-152.9 s in 20 runs alternated with them (docs/fidelity.md). DTAP over 10 runs:
 #: then the 25 % bound is at least three standard errors of the difference (tolerance()).
+#: Load raises DTAP's maximum, the original's as ours: two at a time beside the unit tests,
+#: as here, the original's agents gave a mean of 136.0 s over 12 runs, ours 133.1 s (12
+#: runs alternated with them), and this test's 10 runs in one suite 138.8 s; so DTAP is also
+#: allowed the 25 % around the mean of those loaded runs of the original
+#: (tests/unit/data/original_agents_abstract_world/grid_4_loaded/).
 #: CGG's maximum varies by a few percent (142-143 s, a fixed route).
 RUNS = {"CR": 2, "SEBS": 4, "DTAG": 3, "DTAP": 10}
 PARALLEL = 2
@@ -110,10 +115,20 @@ def test_ros_mode_matches_the_original(alg, name, ros_runs):
     theirs = mean_figures(ref_runs)[k]
     ours = mean_figures([run.figures() for run in ros_runs[alg]])[k]
     tol = tolerance(name, [r[k] for r in ref_runs], len(ros_runs[alg]))
-    assert abs(ours - theirs) <= tol * theirs, (
+    low, high = (1 - tol) * theirs, (1 + tol) * theirs
+    loaded = fc.loaded_agent_figures(alg)
+    if loaded:
+        # the original's agents were also measured on a loaded machine: within the tolerance
+        # of either mean, since these runs may be made quiet or loaded
+        theirs_loaded = mean_figures(loaded)[k]
+        low = min(low, (1 - TOLERANCE[name]) * theirs_loaded)
+        high = max(high, (1 + TOLERANCE[name]) * theirs_loaded)
+    assert low <= ours <= high, (
         f"{alg} in ROS mode ({len(ros_runs[alg])} run(s)): {name} {ours:.2f} vs original "
         f"{theirs:.2f} over {len(ref_runs)} run(s) ({(ours - theirs) / theirs:+.1%}, "
-        f"tolerance {tol:.1%}); runs "
+        f"tolerance {tol:.1%}; allowed {low:.2f}-{high:.2f}"
+        + (f", the original's agents loaded {theirs_loaded:.2f}" if loaded else "")
+        + "); runs "
         f"{[run.figures() for run in ros_runs[alg]]}, agents' mean turnaround "
         f"{[run.turnaround for run in ros_runs[alg]]} sim s")
 

@@ -24,6 +24,8 @@ DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "origina
 #: with this project's monitor, for algorithms whose figures two reference runs cannot pin down
 AGENT_DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
                           "original_agents_abstract_world", "grid_4")
+#: the same, made two at a time beside the unit tests (a loaded machine, as in the test suite)
+LOADED_AGENT_DATA = AGENT_DATA + "_loaded"
 MAP, ROBOTS = "grid", 4
 
 
@@ -84,15 +86,25 @@ def agent_run_dirs(alg):
     return sorted(glob.glob(os.path.join(AGENT_DATA, alg, "*", "")))
 
 
+def figures(run_dir):
+    """(avg idleness, max idleness, visits) of one run folder."""
+    i = info(run_dir)
+    return statistics.mean(idleness_samples(run_dir)), i["idl_max"], i["total_visits"]
+
+
+def loaded_agent_figures(alg):
+    """[(avg, max, visits)] of the original's ``alg`` agents in our abstract world on a loaded
+    machine (LOADED_AGENT_DATA; README there), [] if none."""
+    dirs = sorted(glob.glob(os.path.join(LOADED_AGENT_DATA, alg, "*", "")))
+    return [figures(d) for d in dirs if not stopped_robots(d)]
+
+
 def reference_figures(alg):
     """[(avg idleness, max idleness, visits)] of every usable run of the original's ``alg``:
     the reference runs and the runs of its agents in our abstract world (runs in which a robot
     of the original stopped are left out: see stopped_robots)."""
-    out = []
-    for d in usable_run_dirs(alg) + [d for d in agent_run_dirs(alg) if not stopped_robots(d)]:
-        i = info(d)
-        out.append((statistics.mean(idleness_samples(d)), i["idl_max"], i["total_visits"]))
-    return out
+    return [figures(d) for d in usable_run_dirs(alg)
+            + [d for d in agent_run_dirs(alg) if not stopped_robots(d)]]
 
 
 def reference_duration():

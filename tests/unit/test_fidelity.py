@@ -5,6 +5,8 @@
    expected figure is read from the original's result files.
 2. One test per known rule of the original, on small hand-made graphs.
 """
+import glob
+import os
 import random
 import statistics
 
@@ -75,7 +77,9 @@ def test_original_agent_runs_are_the_originals_dtap():
     info.csv), over the reference duration, and every robot patrolled."""
     dirs = fc.agent_run_dirs("DTAP")
     assert len(dirs) >= 20
-    for d in dirs:
+    loaded = sorted(glob.glob(os.path.join(fc.LOADED_AGENT_DATA, "DTAP", "*", "")))
+    assert len(loaded) >= 12 and len(fc.loaded_agent_figures("DTAP")) == len(loaded)
+    for d in dirs + loaded:
         i = fc.info(d)
         assert (i["algorithm"], i["algorithm_params"]) == ("DTAP", "3,1,0,-2,0,0"), (d, i)
         assert i["termination"] == "TIMEOUT" and i["sim_duration"] >= fc.reference_duration()
