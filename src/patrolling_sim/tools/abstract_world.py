@@ -361,8 +361,10 @@ class WorldNode:
 
 
 def main():
-    import rospy
-    rospy.init_node("abstract_world")
+    from spqrel_nav_lite.ros_util import init_node_signal_safe
+    # SIGINT/SIGTERM handled outside the main thread, which publishes /clock at every step
+    # (rospy's own handler could deadlock there, see init_node_signal_safe)
+    init_node_signal_safe("abstract_world")
     try:
         node = WorldNode()
     except (ValueError, KeyError) as e:

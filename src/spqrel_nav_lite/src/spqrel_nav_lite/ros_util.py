@@ -22,6 +22,39 @@ def fatal(message, code=2):
     os._exit(code)
 
 
+def init_node_signal_safe(name, **kwargs):
+    """``rospy.init_node(name, **kwargs)``, with SIGINT and SIGTERM ending the node as rospy's
+    own handlers do (``rospy.signal_shutdown``), but from a helper thread.
+
+    rospy's handlers call ``signal_shutdown`` in the main thread, wherever the signal
+    interrupts it. If that is inside ``Publisher.publish`` on a queued connection
+    (``QueuedConnection.write_data`` holds the connection's lock), closing the topics takes
+    the same lock in the same thread and the node deadlocks; roslaunch then kills it with
+    SIGKILL 15 s later, and what the node does at its end is lost. Seen in the abstract
+    world, whose main thread publishes /clock at every step, when agents of another launch
+    were still connected at its shutdown (about 1 run in 10). Here the handler only sets an
+    event, and a daemon thread waiting on it calls ``signal_shutdown``: it then waits for
+    the lock like any other thread. Unlike rospy's SIGINT handler, no KeyboardInterrupt is
+    raised in the main thread: loops end on ``rospy.is_shutdown()``."""
+    import signal
+    import threading
+    rospy.init_node(name, disable_signals=True, **kwargs)
+    requested = threading.Event()
+    received = []
+
+    def on_signal(signum, _frame):
+        received.append(signum)
+        requested.set()
+
+    def shut_down():
+        requested.wait()
+        rospy.signal_shutdown(f"signal-{received[0]}")
+
+    threading.Thread(target=shut_down, name="signal-shutdown", daemon=True).start()
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+
+
 def param_name(name, ns="~"):
     """How a parameter is shown in errors: ``~name`` for a node's own, ``ns/name`` otherwise."""
     return ("~" + name) if ns == "~" else ns + name
