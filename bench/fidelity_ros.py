@@ -58,8 +58,7 @@ def main():
             with tempfile.TemporaryDirectory(prefix=f"fidelity_ros_{alg}_") as d:
                 r = run_abstract(alg, seed, d, processes=a.processes, speedup=a.speedup,
                                  duration=duration)
-            if (r.exit_code == 0 and r.info and r.info["termination"] == "TIMEOUT"
-                    and r.info["sim_duration"] >= duration):
+            if r.exit_code == 0 and r.complete(duration):
                 ok.append(r)
             else:
                 notes.append(f"seed {seed}: exit {r.exit_code}, "

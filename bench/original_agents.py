@@ -29,8 +29,6 @@ import json
 import os
 import re
 import shutil
-import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -39,8 +37,10 @@ import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "tests", "ros"))
-from abstract_runs import DURATION, MAP, ROBOTS, START, run_abstract  # noqa: E402
-from rosenv import ros_env  # noqa: E402
+from abstract_runs import (DURATION, MAP, ROBOTS, START, AbstractRun,  # noqa: E402
+                           read_results, run_abstract)
+from patrolling_sim.runner.proctree import ProcessTree  # noqa: E402
+from patrolling_sim.runner.rosenv import experiment_env, free_port, sourced_env  # noqa: E402
 
 #: our short name -> the original's agent executable
 BINARIES = {"RAND": "Random", "CR": "Conscientious_Reactive",
@@ -49,35 +49,6 @@ BINARIES = {"RAND": "Random", "CR": "Conscientious_Reactive",
             "DTAG": "DTAGreedy", "DTAP": "DTASSIPart"}
 #: wall s to wait for a run (x30: about 30 s) before it is stopped and reported
 RUN_LIMIT = 900.0
-
-
-def workspace_env(ws):
-    """The environment of the original's workspace (its devel/setup.bash, /usr/bin first)."""
-    out = subprocess.run(["bash", "-c", f"export PATH=/usr/bin:$PATH; source "
-                          f"{os.path.join(ws, 'devel', 'setup.bash')} && env -0"],
-                         stdout=subprocess.PIPE, check=True).stdout.decode()
-    return dict(kv.split("=", 1) for kv in out.split("\0") if "=" in kv)
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def stop_group(proc, grace=5.0):
-    """SIGINT to the process group ``proc`` leads (started with its own session), SIGKILL
-    after ``grace`` s."""
-    if proc.poll() is not None:
-        return
-    try:
-        os.killpg(proc.pid, signal.SIGINT)
-        proc.wait(grace)
-    except ProcessLookupError:
-        pass
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
 
 
 def world_launch(alg, seed, speedup, results_dir, env):
@@ -104,24 +75,20 @@ def world_launch(alg, seed, speedup, results_dir, env):
     return path
 
 
-def figures(results_dir):
-    """(avg, max, visits, termination, sim duration) of the one run under results_dir."""
-    from patrolling_sim.report.loading import load_run
-    infos = glob.glob(os.path.join(results_dir, "**", "*_info.csv"), recursive=True)
-    if len(infos) != 1:
-        return None
-    run = load_run(infos[0][:-len("_info.csv")])
-    return (float(run.samples["Idleness"].mean()), run.info["idl_max"],
-            run.info["total_visits"], run.info["termination"], run.info["sim_duration"])
+def stop(proc, grace=5.0):
+    """Stop ``proc`` and what it started (SIGINT, then SIGTERM, then SIGKILL)."""
+    if proc.poll() is None:
+        ProcessTree(proc.pid).stop(grace)
+    proc.wait()
 
 
-def run_original(ws, binary, alg, seed, speedup, results_dir):
-    """One run of the original's agents; returns figures() or None."""
-    ours, orig = ros_env(), workspace_env(ws)
+def run_original(ws, orig_env, binary, alg, seed, speedup, results_dir):
+    """One run of the original's agents (``orig_env``: their workspace's environment);
+    returns an :class:`AbstractRun` with its figures."""
     port = free_port()
-    for e in (ours, orig):
-        e["ROS_MASTER_URI"] = f"http://localhost:{port}"
-        e["ROS_HOME"] = os.path.join(results_dir, "ros_home")
+    ours = experiment_env(port, os.path.join(results_dir, "ros_home"))
+    orig = dict(orig_env, **{k: ours[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_LOG_DIR",
+                                                  "ROS_HOME")})
     launch = world_launch(alg, seed, speedup, results_dir, ours)
     log = open(os.path.join(results_dir, "roslaunch.log"), "w")
     world = subprocess.Popen(["roslaunch", "-p", str(port), launch], env=ours, stdout=log,
@@ -158,7 +125,7 @@ def run_original(ws, binary, alg, seed, speedup, results_dir):
         while world.poll() is None and time.monotonic() - t0 < RUN_LIMIT:
             if glob.glob(os.path.join(results_dir, "**", "*_info.csv"), recursive=True):
                 for p in agents:
-                    stop_group(p)
+                    stop(p)
                 try:
                     world.wait(RUN_LIMIT)
                 except subprocess.TimeoutExpired:
@@ -169,11 +136,11 @@ def run_original(ws, binary, alg, seed, speedup, results_dir):
             print(f"  run {seed}: no end after {RUN_LIMIT:.0f} s, stopped", file=sys.stderr)
     finally:
         for p in agents:
-            stop_group(p)
-        stop_group(world, grace=30.0)
+            stop(p)
+        stop(world, grace=30.0)
         for f in logs:
             f.close()
-    return figures(results_dir)
+    return read_results(AbstractRun(world.returncode, ""), results_dir)
 
 
 def summary(label, runs):
@@ -215,27 +182,24 @@ def main():
     os.makedirs(out, exist_ok=True)
     print(f"{a.alg} ({BINARIES[a.alg]}), grid, {ROBOTS} robots, {DURATION:g} s after GO, "
           f"x{a.speedup:g}, files under {out}", flush=True)
+    orig_env = sourced_env(os.path.join(ws, "devel", "setup.bash"))
     raw = {"original": [], "ours": []}
     for k in range(a.runs):
-        d = os.path.join(out, f"original_{k:02d}")
-        os.makedirs(d, exist_ok=True)
-        f = run_original(ws, BINARIES[a.alg], a.alg, k, a.speedup, d)
-        ok = f is not None and f[3] == "TIMEOUT" and f[4] >= DURATION
-        print(f"original run {k}: " + (f"avg {f[0]:.2f} max {f[1]:.1f} visits {f[2]}"
-                                        if ok else f"incomplete ({f}), left out"), flush=True)
-        if ok:
-            raw["original"].append(f[:3])
+        runs = [("original", lambda d: run_original(ws, orig_env, BINARIES[a.alg], a.alg, k,
+                                                    a.speedup, d))]
         if a.ours:
-            d = os.path.join(out, f"ours_{k:02d}")
+            runs.append(("ours", lambda d: run_abstract(a.alg, k, d, processes=a.ours,
+                                                        speedup=a.speedup)))
+        for who, run in runs:
+            d = os.path.join(out, f"{who}_{k:02d}")
             os.makedirs(d, exist_ok=True)
-            r = run_abstract(a.alg, k, d, processes=a.ours, speedup=a.speedup)
-            ok = r.info is not None and r.info["termination"] == "TIMEOUT" and \
-                r.info["sim_duration"] >= DURATION
-            print(f"ours run {k}: " + (f"avg {r.avg:.2f} max {r.max:.1f} visits {r.visits}"
-                                       if ok else f"incomplete (exit {r.exit_code}), left out"),
-                  flush=True)
+            r = run(d)
+            ok = r.complete()
+            print(f"{who} run {k}: " + (f"avg {r.avg:.2f} max {r.max:.1f} visits {r.visits}"
+                                        if ok else f"incomplete (exit {r.exit_code}, info "
+                                                   f"{r.info}), left out"), flush=True)
             if ok:
-                raw["ours"].append(r.figures())
+                raw[who].append(r.figures())
     print(summary("original's agents", raw["original"]))
     if a.ours:
         print(summary(f"our agents (--processes {a.ours})", raw["ours"]))

@@ -43,12 +43,16 @@ class AbstractRun:
     def figures(self):
         return (self.avg, self.max, self.visits)
 
+    def complete(self, duration=DURATION):
+        """The run ended on its timeout after ``duration`` sim s (its figures are usable)."""
+        return (self.info is not None and self.info["termination"] == "TIMEOUT"
+                and self.info["sim_duration"] >= duration)
+
 
 def run_abstract(alg, seed, results_dir, processes="shared", speedup=SPEEDUP,
                  duration=DURATION, extra=()):
     """One run of ``alg`` in the abstract world; returns an :class:`AbstractRun` (figures
     None when the run wrote no info.csv)."""
-    from patrolling_sim.report.loading import load_run
     cmd = ["/usr/bin/python3", START, "--headless", "--map", MAP, "--robots", str(ROBOTS),
            "--alg", alg, "--nav", "abstract", "--timeout", f"{duration:g}", "--speedup",
            f"{speedup:g}", "--seed", str(seed), "--processes", processes, "--results-dir",
@@ -56,7 +60,13 @@ def run_abstract(alg, seed, results_dir, processes="shared", speedup=SPEEDUP,
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                           env=ros_env(), cwd=str(results_dir), timeout=RUN_LIMIT,
                           start_new_session=True)
-    run = AbstractRun(proc.returncode, proc.stdout)
+    return read_results(AbstractRun(proc.returncode, proc.stdout), results_dir)
+
+
+def read_results(run, results_dir):
+    """``run`` (an :class:`AbstractRun`) with the prefix, info, figures and turnaround of the
+    one run whose files are under ``results_dir``; left None without exactly one info.csv."""
+    from patrolling_sim.report.loading import load_run
     infos = glob.glob(os.path.join(str(results_dir), "**", "*_info.csv"), recursive=True)
     if len(infos) != 1:
         return run

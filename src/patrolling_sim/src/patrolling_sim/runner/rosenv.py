@@ -18,6 +18,12 @@ def workspace_env():
     setup = os.path.join(paths.data_root(), "devel", "setup.bash")
     if not os.path.isfile(setup):
         raise PatrolInputError(f"{setup} not found: build the workspace first (make setup)")
+    return sourced_env(setup)
+
+
+def sourced_env(setup):
+    """Environment of ``source SETUP`` (a catkin workspace's devel/setup.bash) with /usr/bin
+    first on PATH and no ROS_MASTER_URI (a new dict on every call)."""
     out = subprocess.run(["bash", "-c", f"source '{setup}' && env -0"], check=True,
                          capture_output=True).stdout
     env = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
