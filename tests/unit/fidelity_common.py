@@ -29,9 +29,10 @@ LOADED_AGENT_DATA = AGENT_DATA + "_loaded"
 MAP, ROBOTS = "grid", 4
 
 
-def run_dirs(alg):
-    """The reference run directories of ``alg`` (sorted), [] if there are none."""
-    return sorted(glob.glob(os.path.join(DATA, alg, "*", "")))
+def run_dirs(alg, root=DATA):
+    """The reference run directories of ``alg`` (sorted), [] if there are none; ``root``:
+    another folder of runs laid out the same way (AGENT_DATA, LOADED_AGENT_DATA)."""
+    return sorted(glob.glob(os.path.join(root, alg, "*", "")))
 
 
 def reference_algorithms():
@@ -81,9 +82,10 @@ def usable_run_dirs(alg):
     return [d for d in run_dirs(alg) if not stopped_robots(d)]
 
 
-def agent_run_dirs(alg):
-    """The runs of the original's ``alg`` agents in our abstract world (sorted), [] if none."""
-    return sorted(glob.glob(os.path.join(AGENT_DATA, alg, "*", "")))
+def agent_run_dirs(alg, loaded=False):
+    """The runs of the original's ``alg`` agents in our abstract world (sorted), [] if none;
+    ``loaded``: those made on a loaded machine (LOADED_AGENT_DATA)."""
+    return run_dirs(alg, LOADED_AGENT_DATA if loaded else AGENT_DATA)
 
 
 def figures(run_dir):
@@ -95,8 +97,7 @@ def figures(run_dir):
 def loaded_agent_figures(alg):
     """[(avg, max, visits)] of the original's ``alg`` agents in our abstract world on a loaded
     machine (LOADED_AGENT_DATA; README there), [] if none."""
-    dirs = sorted(glob.glob(os.path.join(LOADED_AGENT_DATA, alg, "*", "")))
-    return [figures(d) for d in dirs if not stopped_robots(d)]
+    return [figures(d) for d in agent_run_dirs(alg, loaded=True) if not stopped_robots(d)]
 
 
 def reference_figures(alg):

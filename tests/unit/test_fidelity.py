@@ -5,8 +5,6 @@
    expected figure is read from the original's result files.
 2. One test per known rule of the original, on small hand-made graphs.
 """
-import glob
-import os
 import random
 import statistics
 
@@ -77,7 +75,7 @@ def test_original_agent_runs_are_the_originals_dtap():
     info.csv), over the reference duration, and every robot patrolled."""
     dirs = fc.agent_run_dirs("DTAP")
     assert len(dirs) >= 20
-    loaded = sorted(glob.glob(os.path.join(fc.LOADED_AGENT_DATA, "DTAP", "*", "")))
+    loaded = fc.agent_run_dirs("DTAP", loaded=True)
     assert len(loaded) >= 12 and len(fc.loaded_agent_figures("DTAP")) == len(loaded)
     for d in dirs + loaded:
         i = fc.info(d)
