@@ -512,6 +512,17 @@ def test_a_signal_while_the_cluster_starts_stops_it(tmp_path, monkeypatch):
     assert _live_children() <= before
 
 
+def _children_of(pid):
+    """Ids of the live (not zombie) children of ``pid`` (Linux /proc)."""
+    from patrolling_sim.runner.proctree import proc_stat
+    out = []
+    for d in os.listdir("/proc"):
+        st = proc_stat(d) if d.isdigit() else None
+        if st is not None and st.ppid == pid and st.state != "Z":
+            out.append(int(d))
+    return out
+
+
 def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
     """The LocalCluster's workers are children of multiprocessing's forkserver, which has
     imported distributed and the simulator (campaign.WORKER_PRELOAD), not interpreters
@@ -520,23 +531,14 @@ def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
     import io
     from multiprocessing import forkserver
     import patrolling_sim.campaign as campaign_mod
-    from patrolling_sim.runner.proctree import proc_stat
     camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
                                                                     map=["grid"], alg=["CR"]),
                                                seeds=2)))
     seen = []
 
-    def children_of(pid):
-        out = []
-        for d in os.listdir("/proc"):
-            st = proc_stat(d) if d.isdigit() else None
-            if st is not None and st.ppid == pid and st.state != "Z":
-                out.append(int(d))
-        return out
-
     def look(rec):
         server = forkserver._forkserver._forkserver_pid
-        seen.append((server, children_of(server) if server else [], _live_children()))
+        seen.append((server, _children_of(server) if server else [], _live_children()))
 
     res = campaign_mod.run_campaign(camp, str(tmp_path / "out"), workers=1,
                                     stream=io.StringIO(), on_record=look)
@@ -548,6 +550,125 @@ def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
         assert b"multiprocessing.forkserver" in f.read()
     import dask
     assert dask.config.get("distributed.worker.multiprocessing-method") == "forkserver"
+
+
+def test_local_cluster_version_check_skips_pandas_and_is_restored(tmp_path):
+    """Dask's version check imports pandas in every worker when it registers (0.15-0.2 s of
+    the cluster's start, campaign_forkserver.drop_unused_version_checks): the workers of a
+    LocalCluster campaign never load it (no pandas extension mapped in their memory while a
+    run is stored), and after the campaign this process's check lists pandas again (a later
+    --scheduler campaign compares it with remote workers)."""
+    import io
+    from multiprocessing import forkserver
+    from distributed import versions
+    import patrolling_sim.campaign as campaign_mod
+    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
+                                                                    map=["grid"], alg=["CR"]),
+                                               seeds=2)))
+    maps = []
+
+    def look(rec):
+        server = forkserver._forkserver._forkserver_pid
+        for pid in _children_of(server) if server else []:
+            with open(f"/proc/{pid}/maps") as f:
+                maps.append(f.read())
+
+    assert "pandas" in [p[0] for p in versions.optional_packages]
+    res = campaign_mod.run_campaign(camp, str(tmp_path / "out"), workers=2,
+                                    stream=io.StringIO(), on_record=look)
+    assert res["ran"] == 2 and not res["interrupted"]
+    assert maps and all("numpy" in m for m in maps)      # the workers' memory was read...
+    assert not [m for m in maps if "/pandas/" in m]      # ... and holds no pandas
+    assert "pandas" in [p[0] for p in versions.optional_packages]
+    assert (tmp_path / "out" / "runs.csv").is_file()     # the client still writes its table
+
+
+def test_worker_worlds_freeze_the_workers_start_up_objects_once():
+    """A worker's first graph run freezes what the process holds (gc.freeze: its full
+    garbage collections then skip Dask's and the simulator's start-up objects); later runs
+    reuse its WorldCache and freeze nothing more; outside a worker nothing is frozen."""
+    import gc
+    from distributed import Client, LocalCluster
+    from patrolling_sim.campaign_tasks import worker_worlds
+
+    def probe():
+        gc.unfreeze()
+        first = worker_worlds()
+        frozen_first = gc.get_freeze_count()
+        gc.unfreeze()
+        again = worker_worlds()
+        return first is again, frozen_first, gc.get_freeze_count()
+
+    try:
+        gc.unfreeze()
+        worker_worlds()                          # not in a Dask task: a new cache, no freeze
+        assert gc.get_freeze_count() == 0
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                          dashboard_address=":0") as cluster, Client(cluster) as client:
+            same, frozen_first, frozen_again = client.submit(probe, pure=False).result()
+        assert same and frozen_first > 0 and frozen_again == 0
+    finally:
+        gc.unfreeze()
+
+
+def test_version_check_drop_and_restore_change_the_list_in_place():
+    from distributed import versions
+    from patrolling_sim.campaign_forkserver import (drop_unused_version_checks,
+                                                    restore_version_checks)
+    packages = versions.optional_packages
+    before = list(packages)
+    dropped = drop_unused_version_checks()
+    try:
+        assert [p[0] for p in dropped] == ["pandas"]
+        assert versions.optional_packages is packages        # every reader sees the change
+        assert "pandas" not in versions.get_versions()["packages"]
+        assert drop_unused_version_checks() == []            # twice: nothing more to drop
+    finally:
+        restore_version_checks(dropped)
+    assert sorted(map(str, packages)) == sorted(map(str, before))
+    restore_version_checks([])                               # nothing to restore: no change
+    assert sorted(map(str, packages)) == sorted(map(str, before))
+
+
+def test_progress_lines_are_rate_limited_but_failures_and_the_end_always_show(monkeypatch):
+    """In a log, a line at most every LOG_INTERVAL seconds, plus every failed run and the
+    last run; on a terminal the bar is redrawn at most every TTY_INTERVAL seconds."""
+    import io
+    import patrolling_sim.campaign as campaign_mod
+    clock = {"t": 100.0}
+    monkeypatch.setattr(campaign_mod.time, "monotonic", lambda: clock["t"])
+
+    def rec(i, status="TIMEOUT"):
+        return {"status": status, "config": {"map": "grid", "robots": 2, "alg": "CR",
+                                             "seed": i}}
+
+    out = io.StringIO()
+    prog = campaign_mod._Progress(100, 0, out)
+    for i in range(100):
+        clock["t"] += 0.0625                   # a run every 1/16 s (exact in binary)
+        prog.update(rec(i, "CRASHED" if i == 37 else "TIMEOUT"), 2)
+    lines = out.getvalue().splitlines()
+    # the first run; 2 s later (32 runs); the failed run; 2 s after it; the last run
+    assert [line.split(" | ")[0].split("] ")[1] for line in lines] == [
+        "1/100 done, 2 running, 0 failed, ETA 0m06s",
+        "33/100 done, 2 running, 0 failed, ETA 0m04s",
+        "38/100 done, 2 running, 1 failed, ETA 0m03s",
+        "70/100 done, 2 running, 1 failed, ETA 0m01s",
+        "100/100 done, 2 running, 1 failed, ETA 0m00s"], lines
+    assert "seed 37 CRASHED" in lines[2] and "seed 99 TIMEOUT" in lines[-1]
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+    out = Tty()
+    prog = campaign_mod._Progress(100, 0, out)
+    for i in range(100):
+        clock["t"] += 0.0078125                # 1/128 s
+        prog.update(rec(i), 1)
+    draws = out.getvalue().split("\r")[1:]
+    # 100/128 s: the first run, then every 13th (0.1 s = 12.8 runs), and the last
+    assert [d.split(" done")[0].split("] ")[1] for d in draws] == [
+        f"{k}/100" for k in (1, 14, 27, 40, 53, 66, 79, 92, 100)]
 
 
 def test_worker_plugin_lets_group_signals_pass_but_not_to_the_programs_it_starts():

@@ -47,22 +47,42 @@ from .campaign_spec import (DONE_STATUSES, FAILED_STATUSES, MODES, RESULTS_DIR, 
 from .campaign_store import (load_state, needs_run, store_result, summary_table,  # noqa: F401
                              write_table, _write_atomic)
 from .campaign_forkserver import MARK as FORKSERVER_MARK
+from .campaign_forkserver import drop_unused_version_checks, restore_version_checks
 from .campaign_tasks import IgnoreGroupSignals, chunks, run_graph_chunk, run_graph_task, run_ros_task  # noqa: F401,E501
 
 
 class _Progress:
+    """Progress of a campaign: a bar redrawn in place on a terminal, lines in a log. Shown at
+    most every TTY_INTERVAL (terminal) or LOG_INTERVAL (log) seconds, so that thousands of
+    10-ms graph runs neither flood a log nor cost the client a write and a flush each (about
+    0.2 s of a 1000-run campaign's client, docs/benchmarks/campaign.md); a failed run and the
+    last run are always shown, and ROS runs, minutes apart, each get their line."""
+
+    #: least seconds between two redraws of the bar on a terminal
+    TTY_INTERVAL = 0.1
+    #: least seconds between two lines in a log (not a terminal)
+    LOG_INTERVAL = 2.0
+
     def __init__(self, total, skipped, stream=sys.stdout):
         self.total, self.done, self.failed = total, 0, 0
         self.skipped = skipped
         self.t0 = time.monotonic()
+        self.shown = None                      # time of the last line shown
         self.stream = stream
         self.tty = hasattr(stream, "isatty") and stream.isatty()
 
     def update(self, record, running):
         self.done += 1
-        if record["status"] not in DONE_STATUSES:
+        failed = record["status"] not in DONE_STATUSES
+        if failed:
             self.failed += 1
-        el = time.monotonic() - self.t0
+        now = time.monotonic()
+        interval = self.TTY_INTERVAL if self.tty else self.LOG_INTERVAL
+        if not (failed or self.done >= self.total or self.shown is None
+                or now - self.shown >= interval):
+            return
+        self.shown = now
+        el = now - self.t0
         left = self.total - self.done
         eta = el / self.done * left if self.done else 0.0
         width = 24
@@ -231,6 +251,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
     Ctrl-C (or SIGTERM) stops cleanly: runs in progress are cancelled, every finished run's
     files and record are complete, and the next call resumes.
     """
+    t_start = time.monotonic()
     os.makedirs(out, exist_ok=True)
     _write_atomic(os.path.join(out, "campaign.yaml"), yaml.safe_dump(campaign.raw,
                                                                     sort_keys=False))
@@ -249,7 +270,9 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             "start": started.isoformat(timespec="seconds")}
     interrupted = {"sig": None}
     ran = 0
+    t_submit = t_last = None                   # runs submitted; last run stored (monotonic)
     cluster = client = starting = None
+    dropped = []                               # what the version check skips, to restore
 
     # while results are being collected a signal only sets the flag (checked between two
     # stored runs, so a run's files and record are never cut half-way); before that, it
@@ -274,6 +297,10 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                 size, note = ros_concurrency([r.config for r in todo], cores, workers)
                 if note:
                     stream.write(f"campaign {campaign.name}: {note}\n")
+            # every party of the LocalCluster is ours: its version check need not import
+            # pandas (campaign_forkserver.drop_unused_version_checks; its workers' server
+            # did the same)
+            dropped = drop_unused_version_checks()
             starting = _ClusterStart(size)
         prov["packages"] = _package_versions()
         if not todo:
@@ -309,6 +336,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                              [paths.data_root()] * len(todo),
                              resources={"experiment": 1} if cluster else None)
             futs = dict(zip(flist, groups))
+            t_submit = time.monotonic()
             # runs.csv needs pandas at the end: imported now, while the first runs run (not
             # while the LocalCluster starts in its thread: the import holds the GIL that the
             # cluster's scheduler and nanny need, and delayed the cluster by about 0.1 s)
@@ -337,6 +365,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                         rec = store_result(out, spec, result, campaign, next_free)
                         state[spec.key] = rec
                         ran += 1
+                        t_last = time.monotonic()
                         progress.update(rec, min(len(pending), n_workers))
                         if on_record:
                             on_record(rec)
@@ -375,6 +404,7 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                         pass
             for q, level in zip(quiet, levels):   # this process may run another campaign
                 q.setLevel(level)
+            restore_version_checks(dropped)
             table = write_table(out, campaign, state)
             # a signal that came once every run was stored interrupted nothing
             stopped = interrupted["sig"] is not None and ran < len(todo)
@@ -384,6 +414,13 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             prov["end"] = datetime.datetime.now(datetime.timezone.utc).isoformat(
                 timespec="seconds")
             prov["interrupted"] = stopped
+            # where this call's time went: the engine's start (cluster or connection, until
+            # the runs were submitted), then the runs (until the last one was stored), so
+            # that throughput is measured without the start (bench/campaign_bench.py)
+            prov["timing"] = {
+                "engine_start_s": None if t_submit is None else round(t_submit - t_start, 3),
+                "runs_s": None if t_last is None else round(t_last - t_submit, 3),
+                "runs_stored": ran}
             _write_atomic(os.path.join(out, "provenance.yaml"),
                           yaml.safe_dump(prov, sort_keys=False))
         finally:
