@@ -1,6 +1,7 @@
 """Campaigns (patrolling_sim.campaign): validation of campaign files, a graph-mode campaign on
 a 2-worker LocalCluster interrupted and resumed, and the same campaign on a separately started
 Dask scheduler + 2 workers."""
+import json
 import logging
 import os
 import signal
@@ -332,6 +333,65 @@ def test_a_runs_warnings_go_to_its_record_not_to_the_terminal(tmp_path, monkeypa
     df = pd.read_csv(os.path.join(out, "runs.csv"))
     assert list(df["warnings"][:2]) == [21, 0]
     assert "warnings: 1 run(s) logged warnings" in summary_table(out)
+
+
+def test_runs_table_reads_as_pandas_own_and_summary_agrees_with_pandas(tmp_path):
+    """runs.csv is written without pandas (campaign_store.write_table): pandas reads it as
+    the frame it would have written itself from the same rows (finished, crashed, not run;
+    NaN and None metrics, JSON parameters, booleans, a comma in a text), and the printed
+    summary's counts and means are pandas' groupby of it."""
+    import math
+    from patrolling_sim.campaign_store import summary_table, write_table
+    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, fixed={"duration": 300,
+                                                               "params": {"a": [1, 2]}})))
+    out = str(tmp_path / "out")
+    os.makedirs(out)
+    state = {}
+    for i, spec in enumerate(camp.runs[:9]):
+        status = {4: "CRASHED", 5: "FAIL", 6: "CYCLES"}.get(i, "TIMEOUT")
+        metrics = {} if status == "CRASHED" else {
+            "idl_avg": 10.0 + i / 3, "idl_max": 50 + i, "total_visits": 100 + i,
+            "time_avg_idleness": float("nan") if i == 2 else 7.25 * i,
+            "longest_silence_robot": None if i == 3 else i}
+        state[spec.key] = {"status": status, "rc": 1 if status == "CRASHED" else 0,
+                           "prefix": f"results/x,{i}", "wall": 0.5, "cpu_s": 0.25,
+                           "metrics": metrics, "warnings": ["w"] * (i % 2)}
+    path = write_table(out, camp, state)
+    ours = pd.read_csv(path)
+    # the frame pandas writes from the same rows
+    rows = []
+    for spec in camp.runs:
+        rec = state.get(spec.key)
+        row = {"key": spec.key, "mode": spec.mode}
+        row.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else v)
+                    for k, v in spec.config.items()})
+        row["status"] = rec["status"] if rec else "NOT_RUN"
+        if rec:
+            row.update(prefix=rec["prefix"], wall_s=rec["wall"], cpu_s=rec["cpu_s"])
+            row.update(rec["metrics"])
+            row["warnings"] = len(rec["warnings"])
+        rows.append(row)
+    pd.DataFrame(rows).to_csv(tmp_path / "pandas.csv", index=False)
+    theirs = pd.read_csv(tmp_path / "pandas.csv")
+    pd.testing.assert_frame_equal(ours, theirs)
+    assert (ours["status"] == "NOT_RUN").sum() == len(camp.runs) - 9
+    text = summary_table(out).splitlines()
+    ok = theirs[theirs["status"].isin(["TIMEOUT", "CYCLES"])]
+    g = ok.groupby(["map", "robots", "alg"])
+    expect = g.agg(runs=("key", "count"), avg=("idl_avg", "mean"), mx=("idl_max", "mean"),
+                   visits=("total_visits", "mean"), tavg=("time_avg_idleness", "mean"))
+    assert text[0].split() == ["map", "robots", "alg", "runs", "avg_idleness", "max_idleness",
+                               "visits", "time_avg_idleness"]
+    body = [line.split() for line in text[1:1 + len(expect)]]
+    assert [(m, int(n), a) for m, n, a, *_ in body] == list(expect.index)
+    for cells, (_, e) in zip(body, expect.iterrows()):
+        assert int(cells[3]) == e["runs"]
+        for got, want in zip(cells[4:], (e["avg"], e["mx"], e["visits"], e["tavg"])):
+            assert not math.isnan(want) and float(got) == pytest.approx(round(want, 2))
+    counts = theirs["status"].value_counts().to_dict()
+    assert text[1 + len(expect)] == "status: " + ", ".join(f"{k} {v}" for k, v in
+                                                             sorted(counts.items()))
+    assert text[-1].startswith("warnings: 4 run(s) logged warnings")
 
 
 def test_overlapping_runs_restore_the_loggers_propagation():

@@ -337,10 +337,6 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
                              resources={"experiment": 1} if cluster else None)
             futs = dict(zip(flist, groups))
             t_submit = time.monotonic()
-            # runs.csv needs pandas at the end: imported now, while the first runs run (not
-            # while the LocalCluster starts in its thread: the import holds the GIL that the
-            # cluster's scheduler and nanny need, and delayed the cluster by about 0.1 s)
-            import pandas  # noqa: F401
             progress = _Progress(len(todo), skipped, stream)
             next_free = {}                      # result prefix -> first suffix to test
             collecting["on"] = True

@@ -1,6 +1,8 @@
 """Client side of a campaign: the campaign folder (result files, per-run state records,
 ``runs.csv``). Only the client writes files. Part of :mod:`patrolling_sim.campaign`."""
+import csv
 import json
+import math
 import os
 from typing import Dict, Optional
 
@@ -109,8 +111,14 @@ def extra_row_columns(spec: RunSpec, record: Optional[dict]) -> dict:
 
 
 def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
-    """``runs.csv``: one row per run of the campaign (config columns, status, metrics)."""
-    import pandas as pd
+    """``runs.csv``: one row per run of the campaign (config columns, status, metrics).
+
+    Written with the csv module as pandas' ``to_csv`` writes a frame of these rows (columns
+    in the order they first appear, a missing value or NaN as an empty cell, ``\\n`` line
+    ends), so that ``pandas.read_csv`` reads it as before, but without importing pandas: its
+    0.2 s of import was on the campaign's critical path, or took CPU from the workers
+    (docs/benchmarks/campaign.md). One difference in the text: an integer column with
+    empty cells (``rc`` of runs not run) reads ``0``, not pandas' ``0.0``."""
     rows = []
     for spec in campaign.runs:
         rec = state.get(spec.key)
@@ -126,32 +134,74 @@ def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
             row["warnings"] = len(rec.get("warnings") or ())
         row.update(extra_row_columns(spec, rec))
         rows.append(row)
+    columns = list(dict.fromkeys(k for row in rows for k in row))
     path = os.path.join(out, "runs.csv")
-    df = pd.DataFrame(rows)
     tmp = path + ".part"
-    df.to_csv(tmp, index=False)
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(columns)
+        w.writerows([_cell(row.get(c)) for c in columns] for row in rows)
     os.replace(tmp, path)
     return path
 
 
+def _cell(v):
+    """A runs.csv cell: None and NaN empty (as pandas writes them), anything else as is."""
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    return v
+
+
+def _number(text):
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(v) else v
+
+
+#: summary_table's columns: title, runs.csv column whose mean over a group it shows
+SUMMARY_MEANS = (("avg_idleness", "idl_avg"), ("max_idleness", "idl_max"),
+                 ("visits", "total_visits"), ("time_avg_idleness", "time_avg_idleness"))
+
+
 def summary_table(out: str) -> str:
-    """Text table of runs.csv grouped by map, team size and algorithm."""
-    import pandas as pd
-    df = pd.read_csv(os.path.join(out, "runs.csv"))
-    ok = df[df["status"].isin(DONE_STATUSES[:2])]
+    """Text table of runs.csv grouped by map, team size and algorithm: the runs that ended
+    with TIMEOUT or CYCLES, their count and the mean of SUMMARY_MEANS (rounded to 2
+    decimals, empty cells left out); then the count of each status, and how many runs logged
+    warnings. Read with the csv module (pandas' import is 0.2 s of the command)."""
+    with open(os.path.join(out, "runs.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    have = set(rows[0]) if rows else set()
+    means = [(title, col) for title, col in SUMMARY_MEANS if col in have]
+    groups = {}
+    for row in rows:
+        if row.get("status") in DONE_STATUSES[:2]:
+            groups.setdefault((row.get("map"), row.get("robots"), row.get("alg")), []).append(row)
     lines = []
-    if len(ok):
-        g = ok.groupby(["map", "robots", "alg"])
-        t = g.agg(runs=("key", "count"), avg_idleness=("idl_avg", "mean"),
-                  max_idleness=("idl_max", "mean"), visits=("total_visits", "mean"))
-        if "time_avg_idleness" in ok:
-            t["time_avg_idleness"] = g["time_avg_idleness"].mean()
-        lines.append(t.round(2).to_string())
-    counts = df["status"].value_counts().to_dict()
+    if groups:
+        def order(k):
+            m, n, a = k
+            n_num = _number(n)
+            return (str(m), n_num is None, n_num if n_num is not None else 0, str(n), str(a))
+        head = ["map", "robots", "alg", "runs"] + [t for t, _ in means]
+        table = [head]
+        for k in sorted(groups, key=order):
+            cells = [str(x) for x in k] + [str(len(groups[k]))]
+            for _, col in means:
+                vals = [v for v in (_number(r.get(col)) for r in groups[k]) if v is not None]
+                cells.append(f"{sum(vals) / len(vals):.2f}" if vals else "")
+            table.append(cells)
+        width = [max(len(r[i]) for r in table) for i in range(len(head))]
+        for r in table:                     # text left-aligned, numbers right-aligned
+            lines.append("  ".join(c.ljust(w) if i < 3 else c.rjust(w)
+                                   for i, (c, w) in enumerate(zip(r, width))).rstrip())
+    counts = {}
+    for row in rows:
+        counts[row.get("status")] = counts.get(row.get("status"), 0) + 1
     lines.append("status: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
-    n = int((df["warnings"] > 0).sum()) if "warnings" in df else 0
+    n = sum(1 for row in rows if (_number(row.get("warnings")) or 0) > 0)
     if n:
         lines.append(f"warnings: {n} run(s) logged warnings (column 'warnings' of runs.csv; "
                      f"the lines are in their state records, {STATE_DIR}/<key>.yaml)")
     return "\n".join(lines)
-
