@@ -617,7 +617,7 @@ def test_local_cluster_version_check_skips_pandas_and_is_restored(tmp_path):
     the cluster's start, campaign_forkserver.drop_unused_version_checks): the workers of a
     LocalCluster campaign never load it (no pandas extension mapped in their memory while a
     run is stored), and after the campaign this process's check lists pandas again (a later
-    --scheduler campaign compares it with remote workers)."""
+    --scheduler campaign compares it with remote workers). Also: provenance.yaml's timing."""
     import io
     from multiprocessing import forkserver
     from distributed import versions
@@ -641,6 +641,14 @@ def test_local_cluster_version_check_skips_pandas_and_is_restored(tmp_path):
     assert not [m for m in maps if "/pandas/" in m]      # ... and holds no pandas
     assert "pandas" in [p[0] for p in versions.optional_packages]
     assert (tmp_path / "out" / "runs.csv").is_file()     # the client still writes its table
+    # provenance.yaml's timing: the engine's start, then the runs phase
+    timing = yaml.safe_load((tmp_path / "out" / "provenance.yaml").read_text())["timing"]
+    assert timing["runs_stored"] == 2
+    assert timing["engine_start_s"] > 0 and timing["runs_s"] >= 0
+    again = campaign_mod.run_campaign(camp, str(tmp_path / "out"), stream=io.StringIO())
+    assert again["ran"] == 0                             # nothing left: no runs phase
+    timing = yaml.safe_load((tmp_path / "out" / "provenance.yaml").read_text())["timing"]
+    assert timing == {"engine_start_s": None, "runs_s": None, "runs_stored": 0}
 
 
 def test_worker_worlds_freeze_the_workers_start_up_objects_once():
