@@ -1,7 +1,6 @@
 """Campaigns (patrolling_sim.campaign): validation of campaign files, a graph-mode campaign on
 a 2-worker LocalCluster interrupted and resumed, and the same campaign on a separately started
 Dask scheduler + 2 workers."""
-import json
 import logging
 import os
 import signal
@@ -25,6 +24,13 @@ CAMPAIGN = {"name": "t", "mode": "graph", "fixed": {"duration": 300},
             "grid": {"map": ["grid", "1r5"], "robots": [2], "alg": ["CR", "CGG"]}, "seeds": 3}
 METRICS = ["idl_avg", "idl_max", "total_visits", "complete_cycles", "time_avg_idleness",
            "worst_idleness"]
+
+
+def _grid_cr_campaign(tmp_path, seeds=2, **extra):
+    """CAMPAIGN cut to the grid map and CR: ``seeds`` runs."""
+    return load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
+                                                                   map=["grid"], alg=["CR"]),
+                                               seeds=seeds, **extra)))
 
 
 def _write(tmp_path, data, name="c.yaml"):
@@ -341,7 +347,7 @@ def test_runs_table_reads_as_pandas_own_and_summary_agrees_with_pandas(tmp_path)
     NaN and None metrics, JSON parameters, booleans, a comma in a text), and the printed
     summary's counts and means are pandas' groupby of it."""
     import math
-    from patrolling_sim.campaign_store import summary_table, write_table
+    from patrolling_sim.campaign_store import summary_table, table_rows, write_table
     camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, fixed={"duration": 300,
                                                                "params": {"a": [1, 2]}})))
     out = str(tmp_path / "out")
@@ -359,18 +365,10 @@ def test_runs_table_reads_as_pandas_own_and_summary_agrees_with_pandas(tmp_path)
     path = write_table(out, camp, state)
     ours = pd.read_csv(path)
     # the frame pandas writes from the same rows
-    rows = []
-    for spec in camp.runs:
-        rec = state.get(spec.key)
-        row = {"key": spec.key, "mode": spec.mode}
-        row.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else v)
-                    for k, v in spec.config.items()})
-        row["status"] = rec["status"] if rec else "NOT_RUN"
-        if rec:
-            row.update(prefix=rec["prefix"], wall_s=rec["wall"], cpu_s=rec["cpu_s"])
-            row.update(rec["metrics"])
-            row["warnings"] = len(rec["warnings"])
-        rows.append(row)
+    rows = table_rows(camp, state)
+    assert [r["key"] for r in rows] == [r.key for r in camp.runs]
+    assert rows[0]["params"] == '{"a": [1, 2]}' and rows[0]["warnings"] == 0
+    assert rows[-1]["status"] == "NOT_RUN" and "idl_avg" not in rows[-1]
     pd.DataFrame(rows).to_csv(tmp_path / "pandas.csv", index=False)
     theirs = pd.read_csv(tmp_path / "pandas.csv")
     pd.testing.assert_frame_equal(ours, theirs)
@@ -452,9 +450,7 @@ def test_a_signal_after_the_last_run_interrupts_nothing(tmp_path):
     table and provenance written; SIGINT at the first of several runs: interrupted."""
     import io
     from patrolling_sim.campaign import run_campaign
-    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
-                                                                    map=["grid"], alg=["CR"]),
-                                               seeds=2)))
+    camp = _grid_cr_campaign(tmp_path)
     assert len(camp.runs) == 2
 
     def kill_at(k):
@@ -543,9 +539,7 @@ def test_a_signal_while_the_cluster_starts_stops_it(tmp_path, monkeypatch):
     written, interrupted."""
     import io
     import patrolling_sim.campaign as campaign_mod
-    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
-                                                                    map=["grid"], alg=["CR"]),
-                                               seeds=2)))
+    camp = _grid_cr_campaign(tmp_path)
     real = campaign_mod._package_versions
 
     def versions_then_ctrl_c():
@@ -591,9 +585,7 @@ def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
     import io
     from multiprocessing import forkserver
     import patrolling_sim.campaign as campaign_mod
-    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
-                                                                    map=["grid"], alg=["CR"]),
-                                               seeds=2)))
+    camp = _grid_cr_campaign(tmp_path)
     seen = []
 
     def look(rec):
@@ -622,9 +614,7 @@ def test_local_cluster_version_check_skips_pandas_and_is_restored(tmp_path):
     from multiprocessing import forkserver
     from distributed import versions
     import patrolling_sim.campaign as campaign_mod
-    camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
-                                                                    map=["grid"], alg=["CR"]),
-                                               seeds=2)))
+    camp = _grid_cr_campaign(tmp_path)
     maps = []
 
     def look(rec):

@@ -4,7 +4,7 @@ import csv
 import json
 import math
 import os
-from typing import Dict, Optional
+from typing import Dict, List, Optional
 
 import yaml
 
@@ -110,15 +110,9 @@ def extra_row_columns(spec: RunSpec, record: Optional[dict]) -> dict:
     return {}
 
 
-def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
-    """``runs.csv``: one row per run of the campaign (config columns, status, metrics).
-
-    Written with the csv module as pandas' ``to_csv`` writes a frame of these rows (columns
-    in the order they first appear, a missing value or NaN as an empty cell, ``\\n`` line
-    ends), so that ``pandas.read_csv`` reads it as before, but without importing pandas: its
-    0.2 s of import was on the campaign's critical path, or took CPU from the workers
-    (docs/benchmarks/campaign.md). One difference in the text: an integer column with
-    empty cells (``rc`` of runs not run) reads ``0``, not pandas' ``0.0``."""
+def table_rows(campaign: Campaign, state: Dict[str, dict]) -> List[dict]:
+    """The rows of ``runs.csv``: one per run of the campaign, in its order (config columns,
+    status, metrics)."""
     rows = []
     for spec in campaign.runs:
         rec = state.get(spec.key)
@@ -134,6 +128,19 @@ def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
             row["warnings"] = len(rec.get("warnings") or ())
         row.update(extra_row_columns(spec, rec))
         rows.append(row)
+    return rows
+
+
+def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
+    """``runs.csv``: :func:`table_rows`.
+
+    Written with the csv module as pandas' ``to_csv`` writes a frame of these rows (columns
+    in the order they first appear, a missing value or NaN as an empty cell, ``\\n`` line
+    ends), so that ``pandas.read_csv`` reads it as before, but without importing pandas: its
+    0.2 s of import was on the campaign's critical path, or took CPU from the workers
+    (docs/benchmarks/campaign.md). One difference in the text: an integer column with
+    empty cells (``rc`` of runs not run) reads ``0``, not pandas' ``0.0``."""
+    rows = table_rows(campaign, state)
     columns = list(dict.fromkeys(k for row in rows for k in row))
     path = os.path.join(out, "runs.csv")
     tmp = path + ".part"
