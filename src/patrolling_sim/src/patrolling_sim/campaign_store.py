@@ -1,5 +1,6 @@
 """Client side of a campaign: the campaign folder (result files, per-run state records,
 ``runs.csv``). Only the client writes files. Part of :mod:`patrolling_sim.campaign`."""
+import collections
 import csv
 import json
 import math
@@ -178,22 +179,19 @@ def summary_table(out: str) -> str:
     decimals, empty cells left out); then the count of each status, and how many runs logged
     warnings. Read with the csv module (pandas' import is 0.2 s of the command)."""
     with open(os.path.join(out, "runs.csv"), newline="") as f:
-        rows = list(csv.DictReader(f))
-    have = set(rows[0]) if rows else set()
-    means = [(title, col) for title, col in SUMMARY_MEANS if col in have]
+        reader = csv.DictReader(f)
+        rows = list(reader)
+    means = [(title, col) for title, col in SUMMARY_MEANS if col in (reader.fieldnames or ())]
     groups = {}
     for row in rows:
         if row.get("status") in DONE_STATUSES[:2]:
             groups.setdefault((row.get("map"), row.get("robots"), row.get("alg")), []).append(row)
     lines = []
     if groups:
-        def order(k):
-            m, n, a = k
-            n_num = _number(n)
-            return (str(m), n_num is None, n_num if n_num is not None else 0, str(n), str(a))
         head = ["map", "robots", "alg", "runs"] + [t for t, _ in means]
         table = [head]
-        for k in sorted(groups, key=order):
+        # team sizes in numeric order (a finished run's robots is a validated integer)
+        for k in sorted(groups, key=lambda k: (k[0], int(k[1]), k[2])):
             cells = [str(x) for x in k] + [str(len(groups[k]))]
             for _, col in means:
                 vals = [v for v in (_number(r.get(col)) for r in groups[k]) if v is not None]
@@ -203,9 +201,7 @@ def summary_table(out: str) -> str:
         for r in table:                     # text left-aligned, numbers right-aligned
             lines.append("  ".join(c.ljust(w) if i < 3 else c.rjust(w)
                                    for i, (c, w) in enumerate(zip(r, width))).rstrip())
-    counts = {}
-    for row in rows:
-        counts[row.get("status")] = counts.get(row.get("status"), 0) + 1
+    counts = collections.Counter(row.get("status") for row in rows)
     lines.append("status: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
     n = sum(1 for row in rows if (_number(row.get("warnings")) or 0) > 0)
     if n:
