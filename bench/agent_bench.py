@@ -96,10 +96,11 @@ def classify(pid):
 
 
 def make_launch(args, alg, n, results_dir):
-    from patrolling_sim import paths
-    from patrolling_sim.graph import PatrolGraph
-    from patrolling_sim.initial_poses import start_positions
-    occ, G = paths.load_map_bundle(args.map)
+    from patrolling_sim.common import paths
+    from patrolling_sim.model import map_bundle
+    from patrolling_sim.model.graph import PatrolGraph
+    from patrolling_sim.startpos.resolve import start_positions
+    occ, G = map_bundle.load_map_bundle(args.map)
     pg = PatrolGraph(G)
     pos, _ = start_positions(paths.map_name(args.map), n, pg, occ)
     flat = ", ".join(f"{x:.4f}, {y:.4f}" for x, y in pos)

@@ -111,9 +111,9 @@ def timed_loop(path, store_out=None):
     there as the campaign's client stores them (``campaign_store.store_result``), so that the
     loop does all the work of the campaign and only the engine (Dask, processes, transfers,
     the overlap of storing and running) differs."""
-    from patrolling_sim.campaign import load_campaign, run_graph_task
-    from patrolling_sim.campaign_store import store_result
-    from patrolling_sim.campaign_tasks import WorldCache
+    from patrolling_sim.campaign.engine import load_campaign, run_graph_task
+    from patrolling_sim.campaign.store import store_result
+    from patrolling_sim.campaign.tasks import WorldCache
     camp = load_campaign(path)
     worlds = WorldCache()                      # kept across the runs, as a worker's
     run_graph_task(camp.runs[0].config, worlds)    # imports and caches warm, as in a worker
@@ -129,18 +129,18 @@ def timed_loop(path, store_out=None):
 
 def file_creation_ms(d, n=300):
     """(wall ms, kernel CPU ms) of creating one 4-kB file with the client's own writer
-    (``campaign_store._write_atomic``: create ``.part``, write, close, rename), over ``n`` new
+    (``campaign_store.write_atomic``: create ``.part``, write, close, rename), over ``n`` new
     files in a new folder under ``d``. The files stay until the benchmark's folder is
     removed: removing them here would slow down the very creations measured next (see the
     printed note)."""
-    from patrolling_sim.campaign_store import _write_atomic
+    from patrolling_sim.campaign.store import write_atomic
     sub = os.path.join(d, "file_creation")
     os.makedirs(sub)
     text = "x" * 4096
     s0 = resource.getrusage(resource.RUSAGE_SELF).ru_stime
     t0 = time.perf_counter()
     for i in range(n):
-        _write_atomic(os.path.join(sub, f"f{i}.csv"), text)
+        write_atomic(os.path.join(sub, f"f{i}.csv"), text)
     wall = time.perf_counter() - t0
     return 1000 * wall / n, 1000 * (resource.getrusage(resource.RUSAGE_SELF).ru_stime - s0) / n
 

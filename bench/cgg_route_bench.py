@@ -19,10 +19,10 @@ import time
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim import paths  # noqa: E402
+from patrolling_sim.common import paths  # noqa: E402
 from patrolling_sim.algorithms.cgg import original_cyclic_route  # noqa: E402
-from patrolling_sim.graph import PatrolGraph  # noqa: E402
-from patrolling_sim.routes import route_cost  # noqa: E402
+from patrolling_sim.model.graph import PatrolGraph  # noqa: E402
+from patrolling_sim.planning.routes import route_cost  # noqa: E402
 
 
 def main():

@@ -18,12 +18,12 @@ import time
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim import paths  # noqa: E402
-from patrolling_sim.coverage import check_graph, coverage  # noqa: E402
-from patrolling_sim.draw import draw_graph, save_png  # noqa: E402
-from patrolling_sim.extract import ExtractionParams, extract_graph  # noqa: E402
-from patrolling_sim.graph import PatrolGraph, load_graph, undirected_edge_count  # noqa: E402
-from patrolling_sim.mapio import load_map  # noqa: E402
+from patrolling_sim.common import paths  # noqa: E402
+from patrolling_sim.extraction.coverage import check_graph, coverage  # noqa: E402
+from patrolling_sim.model.draw import draw_graph, save_png  # noqa: E402
+from patrolling_sim.extraction.extract import ExtractionParams, extract_graph  # noqa: E402
+from patrolling_sim.model.graph import PatrolGraph, load_graph, undirected_edge_count  # noqa: E402
+from spqrel_nav_lite.mapio import load_map  # noqa: E402
 
 
 def main():

@@ -34,7 +34,7 @@ def _import(src):
         # a source tree outside a checkout: read maps and params from this one
         os.environ.setdefault("PATROLLING_SIM_DATA", ROOT)
     sys.path.insert(0, os.path.abspath(src))
-    from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E402
+    from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
     from patrolling_sim import algorithms  # noqa: E402
     return GraphSimConfig, GraphSimulator, algorithms
 

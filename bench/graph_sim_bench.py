@@ -25,7 +25,7 @@ ALGS = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG"
 CHILD = r"""
 import json, resource, sys, time
 sys.path.insert(0, %r)
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
 cfg = GraphSimConfig(map=%r, robots=%d, alg=%r, duration=%f, seed=1, **%r)
 t0 = time.perf_counter()
 sim = GraphSimulator(cfg)

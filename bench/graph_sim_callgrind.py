@@ -31,8 +31,8 @@ DEFAULT_CELLS = ("1r5:12:DTAG,DIAG_labs:12:DTAP,cumberland:8:SEBS,grid:4:CR,brou
 CHILD = r"""
 import json, sys
 sys.path.insert(0, sys.argv[1])
-from patrolling_sim.campaign_tasks import WorldCache, run_graph_task
-from patrolling_sim.graph_config import GraphSimConfig
+from patrolling_sim.campaign.tasks import WorldCache, run_graph_task
+from patrolling_sim.graphsim.config import GraphSimConfig
 cells, duration, setup_only = json.loads(sys.argv[2]), float(sys.argv[3]), sys.argv[4] == "1"
 worlds = WorldCache()
 for m, n, a in cells:

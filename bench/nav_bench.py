@@ -29,8 +29,8 @@ import numpy as np
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 for p in ("patrolling_sim", "spqrel_nav_lite"):
     sys.path.insert(0, os.path.join(ROOT, "src", p, "src"))
-from patrolling_sim.graph import PatrolGraph  # noqa: E402
-from patrolling_sim.mapio import load_map  # noqa: E402
+from patrolling_sim.model.graph import PatrolGraph  # noqa: E402
+from spqrel_nav_lite.mapio import load_map  # noqa: E402
 from spqrel_nav_lite.particle_filter import LikelihoodField, ParticleFilter  # noqa: E402
 from spqrel_nav_lite.planner import GlobalPlanner, path_length  # noqa: E402
 from procstat import cpu_ticks  # noqa: E402

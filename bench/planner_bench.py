@@ -28,7 +28,7 @@ import numpy as np
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 for sub in ("src/patrolling_sim/src", "src/spqrel_nav_lite/src"):
     sys.path.insert(0, os.path.join(ROOT, sub))
-from patrolling_sim.mapio import load_map  # noqa: E402
+from spqrel_nav_lite.mapio import load_map  # noqa: E402
 from spqrel_nav_lite.planner import GlobalPlanner, PlanningError  # noqa: E402
 from spqrel_nav_lite.planner_grid import PlannerGrid  # noqa: E402
 

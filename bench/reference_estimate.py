@@ -46,8 +46,8 @@ def main():
     if len(durs) < 2 or not 0 < a.fraction <= 1:
         ap.error("give two durations or more and 0 < --fraction <= 1")
     import numpy as np
-    from patrolling_sim.campaign_spec import load_campaign
-    from patrolling_sim.campaign_tasks import WorldCache, run_graph_task
+    from patrolling_sim.campaign.spec import load_campaign
+    from patrolling_sim.campaign.tasks import WorldCache, run_graph_task
     worlds = WorldCache()                      # graphs kept across the runs, as a worker's
     camp = load_campaign(a.campaign)
     runs = camp.runs

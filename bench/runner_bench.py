@@ -159,9 +159,9 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
         res["idl"] = float(f[15]) if f[15].strip() else float("nan")
         res["interf"] = int(f[12])
     res["load"] = os.getloadavg()[0]
-    # the runner's memory estimate for this run (patrolling_sim.validation), to compare with
+    # the runner's memory estimate for this run (patrolling_sim.experiment.validation), to compare with
     # the measured peak PSS when its figures are updated
-    from patrolling_sim import validation
+    from patrolling_sim.experiment import validation
     res["estimate_mb"] = validation.memory_estimate_mb(
         robots, processes, *validation.map_memory_figures(map_name))
     return res

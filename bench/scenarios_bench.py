@@ -31,10 +31,10 @@ import tempfile
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 from patrolling_sim.algorithms import REGISTRY  # noqa: E402
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E402
-from patrolling_sim.metrics import (failure_impact, graph_idleness_series,  # noqa: E402
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
+from patrolling_sim.monitor.metrics import (failure_impact, graph_idleness_series,  # noqa: E402
                                     read_visits)
-from patrolling_sim.scenario import read_scenario, scenario_columns  # noqa: E402
+from patrolling_sim.scenarios.scenario import read_scenario, scenario_columns  # noqa: E402
 
 COMMS = ["perfect", "bernoulli:p=0.3", "ge:p_good=0,p_bad=1,to_bad=0.05,to_good=0.5",
          "range:r=10,los=false", "range:r=10,los=true", "range:r=20,los=true"]
@@ -97,15 +97,16 @@ def comms(a, out):
 
 def campaign_table(root):
     import glob
-    from patrolling_sim import paths
-    from patrolling_sim.results import parse_info_line
-    from patrolling_sim.scenario import scenario_metrics
+    from patrolling_sim.common import paths
+    from patrolling_sim.model import map_bundle
+    from patrolling_sim.monitor.results import parse_info_line
+    from patrolling_sim.scenarios.scenario import scenario_metrics
     per = {}
     for yml in sorted(glob.glob(os.path.join(root, "**", "*_scenario.yaml"), recursive=True)):
         prefix = yml[:-len("_scenario.yaml")]
         with open(prefix + "_info.csv") as f:
             info = parse_info_line(f.read().strip().splitlines()[-1])
-        m = scenario_metrics(prefix, paths.vertex_count(info["map"]), info["sim_duration"])
+        m = scenario_metrics(prefix, map_bundle.vertex_count(info["map"]), info["sim_duration"])
         per.setdefault(info["algorithm"], []).append(m)
     if not per:
         sys.exit(f"{root}: no run with a scenario file")

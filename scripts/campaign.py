@@ -20,7 +20,7 @@ def _early_signal(signum, frame):
 if __name__ == "__main__":      # Dask's worker processes re-import this file: no side effects
     signal.signal(signal.SIGINT, _early_signal)
     signal.signal(signal.SIGTERM, _early_signal)
-    from patrolling_sim.campaign import main
+    from patrolling_sim.campaign.engine import main
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     rc = main()

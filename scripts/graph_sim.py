@@ -10,7 +10,7 @@ import sys  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src",
                                 "patrolling_sim", "src"))
-from patrolling_sim.graph_sim import main  # noqa: E402
+from patrolling_sim.graphsim.cli import main  # noqa: E402
 
 signal.signal(signal.SIGINT, signal.default_int_handler)   # from here: KeyboardInterrupt,
 signal.signal(signal.SIGTERM, signal.SIG_DFL)             # handled by main (files kept)

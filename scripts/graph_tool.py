@@ -5,6 +5,6 @@ import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src",
                                 "patrolling_sim", "src"))
-from patrolling_sim.graph_tool import entry  # noqa: E402
+from patrolling_sim.extraction.graph_tool import entry  # noqa: E402
 
 entry()

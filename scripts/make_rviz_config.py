@@ -12,8 +12,8 @@ import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src",
                                 "patrolling_sim", "src"))
-from patrolling_sim.cli import CliParser, run_main  # noqa: E402
-from patrolling_sim.errors import PatrolInputError  # noqa: E402
+from patrolling_sim.common.cli import CliParser, run_main  # noqa: E402
+from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
 
 PROG = "make_rviz_config.py"
 
@@ -45,8 +45,8 @@ def main(argv):
         raise PatrolInputError(f"argument --enabled: {enabled} exceeds --robots {robots}")
     extent = None
     if a.map:
-        from patrolling_sim import paths
-        from patrolling_sim.mapio import load_map
+        from patrolling_sim.common import paths
+        from spqrel_nav_lite.mapio import load_map
         extent = map_extent(load_map(paths.map_files(a.map)[0]))
     cmd = [PROG, f"--robots {robots}", f"--enabled {enabled}"] + (
         [f"--map {a.map}"] if a.map else [])

@@ -8,5 +8,5 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
                                 "patrolling_sim", "src"))
 
 if __name__ == "__main__":
-    from patrolling_sim.reference_docs import main
+    from patrolling_sim.report.reference_docs import main
     sys.exit(main())

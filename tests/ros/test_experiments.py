@@ -13,7 +13,7 @@ from rosenv import ros_env
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 START = os.path.join(ROOT, "scripts", "start_experiments.py")
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-from patrolling_sim.results import parse_info_line  # noqa: E402
+from patrolling_sim.monitor.results import parse_info_line  # noqa: E402
 
 SUFFIXES = ("idleness.csv", "timeresults.csv", "results.txt", "info.csv", "config.yaml",
             "experiment.launch")

@@ -22,7 +22,7 @@ from rosenv import ros_env
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 START = os.path.join(ROOT, "scripts", "start_experiments.py")
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-from patrolling_sim.results import parse_info_line  # noqa: E402
+from patrolling_sim.monitor.results import parse_info_line  # noqa: E402
 from patrolling_sim.runner.proctree import ProcessTree  # noqa: E402
 
 RUN = ["--map", "grid", "--robots", "2", "--alg", "CR", "--loc", "fake_localization",

@@ -31,9 +31,9 @@ import rospy
 from nav_msgs.msg import OccupancyGrid
 from geometry_msgs.msg import PoseWithCovarianceStamped, Point
 from visualization_msgs.msg import Marker, MarkerArray
-from patrolling_sim import paths
-from patrolling_sim.mapio import load_map
-from patrolling_sim.graph import load_graph
+from patrolling_sim.common import paths
+from spqrel_nav_lite.mapio import load_map
+from patrolling_sim.model.graph import load_graph
 
 yaml_path, graph_path = paths.map_files("grid")
 occ = load_map(yaml_path)

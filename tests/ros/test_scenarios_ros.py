@@ -171,13 +171,14 @@ def test_abstract_line_of_sight_drops_messages_through_walls(tmp_path):
     """Grid, 2 robots starting on opposite sides of an obstacle block, range 1000 m (far
     beyond the map: only walls can cut a link). With line of sight required, the
     receivers drop both /results and /positions messages; without, nothing is lost."""
-    from patrolling_sim import paths
-    from patrolling_sim.comm import line_of_sight
+    from patrolling_sim.common import paths
+    from patrolling_sim.model import map_bundle
+    from patrolling_sim.scenarios.comm import line_of_sight
     from patrolling_sim.runner.config import ExperimentConfig
     cfg = ExperimentConfig(map="grid", robots=2, alg="SEBS", timeout=120,
                            results_dir=str(tmp_path))
     a, b = cfg.start_positions()
-    assert not line_of_sight(paths.load_map_bundle("grid")[0], a, b)   # placed accordingly
+    assert not line_of_sight(map_bundle.load_map_bundle("grid")[0], a, b)   # placed accordingly
     totals = {}
     for los in ("true", "false"):
         out_dir = tmp_path / los

@@ -16,8 +16,8 @@ import os
 import statistics
 
 from patrolling_sim.algorithms import names
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator
-from patrolling_sim.results import parse_info_line
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
+from patrolling_sim.monitor.results import parse_info_line
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "original_runs", "grid_4")
 #: more runs of the original's agents (built from its source), in this project's abstract world

@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.runner.config import ExperimentConfig
 from patrolling_sim.runner.launchgen import generate_launch, status_topic
 

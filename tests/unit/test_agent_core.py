@@ -5,7 +5,7 @@ import itertools
 
 import pytest
 
-from patrolling_sim.agent_core import (BACKUP_DURATION, INTERFERENCE_PAUSE, MAX_RESENDS,
+from patrolling_sim.agent.core import (BACKUP_DURATION, INTERFERENCE_PAUSE, MAX_RESENDS,
                                        Effects, PatrolAgentCore)
 from patrolling_sim.algorithms.base import PatrolStrategy
 

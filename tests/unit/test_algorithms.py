@@ -4,14 +4,14 @@ import random
 
 import pytest
 
-from patrolling_sim import paths
+from patrolling_sim.common import paths
 from patrolling_sim.algorithms import REGISTRY, StrategyContext, create, names
 from patrolling_sim.algorithms.base import Driver
 from patrolling_sim.algorithms.cgg import rotate_to
 from patrolling_sim.algorithms.gbs import gbs_params, gbs_probability
 from patrolling_sim.algorithms.msp import msp_route
-from patrolling_sim.graph import PatrolGraph
-from patrolling_sim.routes import balanced_partition, closed_route, route_cost
+from patrolling_sim.model.graph import PatrolGraph
+from patrolling_sim.planning.routes import balanced_partition, closed_route, route_cost
 
 #: the original's eleven short names (each must stay registered)
 ORIGINAL = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
@@ -322,7 +322,7 @@ def test_dtap_auction_between_two_robots():
 def test_cgg_route_within_10_percent_of_best_found(mapname):
     """The shared CGG route is a closed walk covering every vertex, at most 1.1 x the best
     closed walk a harder search finds (more restarts, other seeds)."""
-    from patrolling_sim.routes import tsp_tour
+    from patrolling_sim.planning.routes import tsp_tour
     g = graph(mapname)
     r = closed_route(g)
     assert r[0] == r[-1] and set(r) == set(range(g.n))

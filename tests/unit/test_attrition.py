@@ -1,8 +1,8 @@
-"""Attrition schedules (patrolling_sim.attrition): explicit and random, seeded, validated."""
+"""Attrition schedules (patrolling_sim.scenarios.attrition): explicit and random, seeded, validated."""
 import pytest
 
-from patrolling_sim.attrition import Failure, describe, parse_attrition, random_schedule
-from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.scenarios.attrition import Failure, describe, parse_attrition, random_schedule
+from patrolling_sim.common.errors import PatrolInputError
 
 
 def test_explicit_schedule_sorted_with_repairs():

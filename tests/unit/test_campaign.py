@@ -1,4 +1,4 @@
-"""Campaigns (patrolling_sim.campaign): validation of campaign files, a graph-mode campaign on
+"""Campaigns (patrolling_sim.campaign.engine): validation of campaign files, a graph-mode campaign on
 a 2-worker LocalCluster interrupted and resumed, and the same campaign on a separately started
 Dask scheduler + 2 workers."""
 import logging
@@ -14,8 +14,8 @@ import pytest
 import yaml
 
 import process_guard  # tests/process_guard.py (tests/conftest.py puts tests/ on the path)
-from patrolling_sim.campaign import load_campaign, load_state
-from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.campaign.engine import load_campaign, load_state
+from patrolling_sim.common.errors import PatrolInputError
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 SCRIPT = os.path.join(ROOT, "scripts", "campaign.py")
@@ -246,7 +246,7 @@ def test_external_scheduler_gives_the_same_table(tmp_path):
 
 
 def test_all_expands_to_every_map_and_algorithm(tmp_path):
-    from patrolling_sim import paths
+    from patrolling_sim.common import paths
     from patrolling_sim.algorithms import names
     camp = load_campaign(_write(tmp_path, {"grid": {"map": "all", "alg": "all"}}),
                          code={"commit": "x", "dirty": False})
@@ -258,7 +258,7 @@ def test_scenario_runs_get_scenario_columns_and_metrics():
     """A run with a failure and a communication model: its row has the scn_* columns (the
     failure time, message counters) and its metrics file the per-failure impact; a run
     without a scenario has neither."""
-    from patrolling_sim.campaign_tasks import run_graph_task
+    from patrolling_sim.campaign.tasks import run_graph_task
     base = dict(map="grid", robots=4, alg="SEBS", duration=900.0, seed=1)
     res = run_graph_task(dict(base, attrition="1@400", comm="bernoulli:p=0.3"))
     m = res["metrics"]
@@ -277,7 +277,7 @@ def test_row_has_the_longest_silence_of_the_visit_log():
     """runs.csv's longest_silence / longest_silence_robot: the longest time a robot sent no
     visit report (from GO to its first, between two, from its last to the end), recomputed
     here from the run's own visit log."""
-    from patrolling_sim.campaign_tasks import run_graph_task
+    from patrolling_sim.campaign.tasks import run_graph_task
     res = run_graph_task(dict(map="grid", robots=3, alg="RAND", duration=400.0, seed=4))
     log = res["files"][res["prefix"] + "_visits.csv"].split()
     times = {}
@@ -301,10 +301,10 @@ def test_a_runs_warnings_go_to_its_record_not_to_the_terminal(tmp_path, monkeypa
     kept with that run: its state record lists the lines (at most 20, then a count),
     runs.csv counts them, the summary says how many runs had some, and nothing is printed."""
     import logging
-    from patrolling_sim import graph_sim
-    from patrolling_sim.campaign import store_result, write_table
-    from patrolling_sim.campaign_store import summary_table
-    from patrolling_sim.campaign_tasks import run_graph_task
+    from patrolling_sim.graphsim import simulator as graph_sim
+    from patrolling_sim.campaign.engine import store_result, write_table
+    from patrolling_sim.campaign.store import summary_table
+    from patrolling_sim.campaign.tasks import run_graph_task
     real_run = graph_sim.GraphSimulator.run
 
     def noisy_run(self, *a, **kw):
@@ -347,7 +347,7 @@ def test_runs_table_reads_as_pandas_own_and_summary_agrees_with_pandas(tmp_path)
     NaN and None metrics, JSON parameters, booleans, a comma in a text), and the printed
     summary's counts and means are pandas' groupby of it."""
     import math
-    from patrolling_sim.campaign_store import summary_table, table_rows, write_table
+    from patrolling_sim.campaign.store import summary_table, table_rows, write_table
     camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, fixed={"duration": 300,
                                                                "params": {"a": [1, 2]}})))
     out = str(tmp_path / "out")
@@ -398,7 +398,7 @@ def test_overlapping_runs_restore_the_loggers_propagation():
     warnings."""
     import logging
     import threading
-    from patrolling_sim.campaign_tasks import RunWarnings
+    from patrolling_sim.campaign.tasks import RunWarnings
     log = logging.getLogger("patrolling_sim.algorithms.dta_common")
     first = RunWarnings().__enter__()
     got = {}
@@ -425,7 +425,7 @@ def test_overlapping_runs_restore_the_loggers_propagation():
 def test_runs_with_one_time_stamp_keep_their_files_apart(tmp_path):
     """Runs stored within one second share a prefix: each gets its own suffix, across calls
     (a resumed campaign starts with an empty suffix memory and must not overwrite files)."""
-    from patrolling_sim.campaign import store_result
+    from patrolling_sim.campaign.engine import store_result
     camp = load_campaign(_write(tmp_path, CAMPAIGN))
     out = str(tmp_path / "out")
 
@@ -449,7 +449,7 @@ def test_a_signal_after_the_last_run_interrupts_nothing(tmp_path):
     """SIGINT while the last run is being stored: the campaign finishes (not "interrupted"),
     table and provenance written; SIGINT at the first of several runs: interrupted."""
     import io
-    from patrolling_sim.campaign import run_campaign
+    from patrolling_sim.campaign.engine import run_campaign
     camp = _grid_cr_campaign(tmp_path)
     assert len(camp.runs) == 2
 
@@ -538,7 +538,7 @@ def test_a_signal_while_the_cluster_starts_stops_it(tmp_path, monkeypatch):
     stops the campaign: no run, the cluster's worker processes stopped, table and provenance
     written, interrupted."""
     import io
-    import patrolling_sim.campaign as campaign_mod
+    import patrolling_sim.campaign.engine as campaign_mod
     camp = _grid_cr_campaign(tmp_path)
     real = campaign_mod._package_versions
 
@@ -584,7 +584,7 @@ def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
     client no worker of its own."""
     import io
     from multiprocessing import forkserver
-    import patrolling_sim.campaign as campaign_mod
+    import patrolling_sim.campaign.engine as campaign_mod
     camp = _grid_cr_campaign(tmp_path)
     seen = []
 
@@ -613,7 +613,7 @@ def test_local_cluster_version_check_skips_pandas_and_is_restored(tmp_path):
     import io
     from multiprocessing import forkserver
     from distributed import versions
-    import patrolling_sim.campaign as campaign_mod
+    import patrolling_sim.campaign.engine as campaign_mod
     camp = _grid_cr_campaign(tmp_path)
     maps = []
 
@@ -647,7 +647,7 @@ def test_worker_worlds_freeze_the_workers_start_up_objects_once():
     reuse its WorldCache and freeze nothing more; outside a worker nothing is frozen."""
     import gc
     from distributed import Client, LocalCluster
-    from patrolling_sim.campaign_tasks import worker_worlds
+    from patrolling_sim.campaign.tasks import worker_worlds
 
     def probe():
         gc.unfreeze()
@@ -671,7 +671,7 @@ def test_worker_worlds_freeze_the_workers_start_up_objects_once():
 
 def test_version_check_drop_and_restore_change_the_list_in_place():
     from distributed import versions
-    from patrolling_sim.campaign_forkserver import (drop_unused_version_checks,
+    from patrolling_sim.campaign.forkserver import (drop_unused_version_checks,
                                                     restore_version_checks)
     packages = versions.optional_packages
     before = list(packages)
@@ -692,7 +692,7 @@ def test_progress_lines_are_rate_limited_but_failures_and_the_end_always_show(mo
     """In a log, a line at most every LOG_INTERVAL seconds, plus every failed run and the
     last run; on a terminal the bar is redrawn at most every TTY_INTERVAL seconds."""
     import io
-    import patrolling_sim.campaign as campaign_mod
+    import patrolling_sim.campaign.engine as campaign_mod
     clock = {"t": 100.0}
     monkeypatch.setattr(campaign_mod.time, "monotonic", lambda: clock["t"])
 
@@ -733,7 +733,7 @@ def test_worker_plugin_lets_group_signals_pass_but_not_to_the_programs_it_starts
     """The worker plugin gives SIGINT and SIGTERM a handler that does nothing, not SIG_IGN:
     an ignored signal would be inherited by a ROS run the worker starts, a handled one is
     back to its default there."""
-    from patrolling_sim.campaign_tasks import IgnoreGroupSignals
+    from patrolling_sim.campaign.tasks import IgnoreGroupSignals
     sigs = (signal.SIGINT, signal.SIGTERM)
     old = {s: signal.getsignal(s) for s in sigs}
     try:
@@ -757,7 +757,7 @@ def test_local_workers_drop_the_records_of_a_scheduler_gone_first():
     run; that worker's late heartbeat then failed with a logged traceback of Dask's comm layer
     in the campaign's output. The worker plugin drops exactly those two records."""
     import logging
-    from patrolling_sim.campaign_tasks import IgnoreGroupSignals, SchedulerGoneFirst
+    from patrolling_sim.campaign.tasks import IgnoreGroupSignals, SchedulerGoneFirst
     log = logging.getLogger("distributed.worker")
     old_filters, old_int, old_term = list(log.filters), signal.getsignal(signal.SIGINT), \
         signal.getsignal(signal.SIGTERM)
@@ -783,8 +783,8 @@ def test_local_workers_drop_the_records_of_a_scheduler_gone_first():
 def test_ros_campaign_runs_as_many_experiments_at_a_time_as_the_memory_holds():
     """ROS mode: half the cores by default, fewer when the largest run's memory estimate
     does not fit that many times; a --workers value is kept, with a warning."""
-    from patrolling_sim import validation
-    from patrolling_sim.campaign import ros_concurrency
+    from patrolling_sim.experiment import validation
+    from patrolling_sim.campaign.engine import ros_concurrency
     small = {"map": "grid", "robots": 2, "processes": "shared", "nav": "spqrel_nav_lite"}
     big = dict(small, map="broughton", robots=12)
     need = validation.memory_estimate_mb(12, "shared",

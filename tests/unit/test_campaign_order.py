@@ -7,7 +7,7 @@ import sys
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim.campaign_spec import load_campaign  # noqa: E402
+from patrolling_sim.campaign.spec import load_campaign  # noqa: E402
 
 CODE = {"commit": "test", "dirty": False}
 

@@ -6,7 +6,7 @@ import logging
 
 import pytest
 
-from patrolling_sim.cli import LowercaseLevelFormatter, setup_logging
+from patrolling_sim.common.cli import LowercaseLevelFormatter, setup_logging
 
 
 def test_setup_logging_keeps_the_standard_level_names():

@@ -1,4 +1,4 @@
-"""Communication models (patrolling_sim.comm) against their definitions: loss rates and
+"""Communication models (patrolling_sim.scenarios.comm) against their definitions: loss rates and
 burst lengths within statistical tolerance for a seed, delays, range and line of sight on a
 small map with a wall, parsing and one-line errors."""
 import math
@@ -7,9 +7,9 @@ import statistics
 import numpy as np
 import pytest
 
-from patrolling_sim.comm import (Bernoulli, GilbertElliott, line_of_sight, parse_comm)
-from patrolling_sim.errors import PatrolInputError
-from patrolling_sim.mapio import OccupancyMap
+from patrolling_sim.scenarios.comm import (Bernoulli, GilbertElliott, line_of_sight, parse_comm)
+from patrolling_sim.common.errors import PatrolInputError
+from spqrel_nav_lite.mapio import OccupancyMap
 
 N = 40000
 

@@ -10,7 +10,7 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E402
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
 
 #: (alg, map, robots, seed) -> sha256 of _visits.csv + _idleness.csv, recorded before the
 #: speed-up (commit "test: DTA fingerprints")
@@ -52,7 +52,7 @@ def test_dta_runs_unchanged(case, tmp_path):
 def test_decode_seconds_is_the_old_conversion():
     from patrolling_sim.algorithms.dta_common import (IdlenessEstimate, decode_idleness,
                                                       decode_seconds)
-    from patrolling_sim.graph import PatrolGraph, load_graph
+    from patrolling_sim.model.graph import PatrolGraph, load_graph
     g, other = (PatrolGraph(load_graph(os.path.join(ROOT, "maps", m, m + ".graph")))
                 for m in ("1r5", "grid"))
     n = g.n

@@ -10,13 +10,13 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim import paths  # noqa: E402
-from patrolling_sim.coverage import check_graph, coverage  # noqa: E402
-from patrolling_sim.errors import PatrolInputError  # noqa: E402
-from patrolling_sim.extract import ExtractionParams, extract_graph, init_map_yaml  # noqa: E402
-from patrolling_sim.graph import PatrolGraph, load_graph  # noqa: E402
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E402
-from patrolling_sim.mapio import OccupancyMap, load_map  # noqa: E402
+from patrolling_sim.common import paths  # noqa: E402
+from patrolling_sim.extraction.coverage import check_graph, coverage  # noqa: E402
+from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
+from patrolling_sim.extraction.extract import ExtractionParams, extract_graph, init_map_yaml  # noqa: E402
+from patrolling_sim.model.graph import PatrolGraph, load_graph  # noqa: E402
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
+from spqrel_nav_lite.mapio import OccupancyMap, load_map  # noqa: E402
 
 TOOL = os.path.join(ROOT, "scripts", "graph_tool.py")
 
@@ -42,8 +42,8 @@ def run_tool(*args):
     """graph_tool.py in this process (as its entry point runs it): (returncode, stdout, stderr)."""
     import contextlib
     import io
-    from patrolling_sim.cli import run_main
-    from patrolling_sim.graph_tool import main
+    from patrolling_sim.common.cli import run_main
+    from patrolling_sim.extraction.graph_tool import main
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         try:

@@ -17,8 +17,8 @@ from patrolling_sim.algorithms.base import INT16_CAP, Driver
 from patrolling_sim.algorithms.dta_common import path_hops
 from patrolling_sim.algorithms.dtap import int16_payload
 from patrolling_sim.algorithms.gbs import gbs_params
-from patrolling_sim.graph import PatrolGraph, parse_graph
-from patrolling_sim.routes import CRand, hamiltonian_route
+from patrolling_sim.model.graph import PatrolGraph, parse_graph
+from patrolling_sim.planning.routes import CRand, hamiltonian_route
 
 SEEDS = range(5)
 #: tolerances of the comparison (relative to the mean of the original's runs)
@@ -419,8 +419,8 @@ def test_dta_estimates_stay_per_agent():
 def test_msp_follows_its_file_from_the_second_entry_without_realigning():
     """grid_4_2 begins at vertex 15 while robot 2 starts on 20: the original still heads
     for the file's second entry, then the next ones, wrapping to the second."""
-    from patrolling_sim import paths
-    from patrolling_sim.msp_routes import load_route
+    from patrolling_sim.common import paths
+    from patrolling_sim.planning.msp_routes import load_route
     g = fc.simulator("CR", 0).g
     route = load_route(paths.msp_route_file("grid", 4, 2), g)
     s, _ = make("MSP", g, rid=2, n=4, mapname="grid")

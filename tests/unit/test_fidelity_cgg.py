@@ -2,7 +2,7 @@
 
 Grid has a Hamiltonian path (checked against the original's runs in test_fidelity.py); on
 every other map the original builds its longest cycle or longest path with detours
-(``patrolling_sim.cyclic_route``). The pinned figures below were computed by that code; the
+(``patrolling_sim.planning.cyclic_route``). The pinned figures below were computed by that code; the
 properties checked next to them (every vertex and every edge covered, consecutive entries
 adjacent, a path walked back from a degree-1 vertex, a cycle closed on itself) hold for the
 original's construction and would catch a wrong port.
@@ -11,13 +11,13 @@ import logging
 
 import pytest
 
-from patrolling_sim import paths
+from patrolling_sim.common import paths
 from patrolling_sim.algorithms import StrategyContext, create
 from patrolling_sim.algorithms.cgg import original_cyclic_route
-from patrolling_sim.cyclic_route import (RouteConstructionError, _Web, cyclic_route,
+from patrolling_sim.planning.cyclic_route import (RouteConstructionError, _Web, cyclic_route,
                                          longest_path, outbound_walk)
-from patrolling_sim.graph import PatrolGraph, parse_graph
-from patrolling_sim.routes import route_cost
+from patrolling_sim.model.graph import PatrolGraph, parse_graph
+from patrolling_sim.planning.routes import route_cost
 
 #: map -> (main route kind, entries, cost in the graph's units, first entries)
 PINNED = {

@@ -5,11 +5,11 @@ import sys
 
 import pytest
 
-from patrolling_sim import paths
-from patrolling_sim.dta_params import load_dta_params
-from patrolling_sim.errors import PatrolInputError, StaleRouteError
-from patrolling_sim.graph import PatrolGraph, load_graph
-from patrolling_sim.msp_routes import format_route, load_route
+from patrolling_sim.common import paths
+from patrolling_sim.model.dta_params import load_dta_params
+from patrolling_sim.common.errors import PatrolInputError, StaleRouteError
+from patrolling_sim.model.graph import PatrolGraph, load_graph
+from patrolling_sim.planning.msp_routes import format_route, load_route
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 

@@ -3,12 +3,12 @@ import os
 
 import pytest
 
-from patrolling_sim import paths
-from patrolling_sim.errors import GraphFormatError
-from patrolling_sim.graph import (PatrolGraph, format_graph, graph_warnings, graphs_equal,
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import GraphFormatError
+from patrolling_sim.model.graph import (PatrolGraph, format_graph, graph_warnings, graphs_equal,
                                   load_graph, parse_graph, printed_edge_count,
                                   undirected_edge_count)
-from patrolling_sim.mapio import load_map
+from spqrel_nav_lite.mapio import load_map
 
 # the shipped maps (maps/README.md): V, E (distinct pairs), E* (as the original prints)
 SHIPPED = {

@@ -6,9 +6,9 @@ import sys
 import pytest
 
 from patrolling_sim.algorithms import names
-from patrolling_sim.errors import PatrolInputError
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator, claim_prefix
-from patrolling_sim.results import parse_info_line
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator, claim_prefix
+from patrolling_sim.monitor.results import parse_info_line
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 
@@ -133,7 +133,7 @@ def test_every_algorithm_runs_crowded_teams(alg, mapname, n, tmp_path):
 # -- the graph world around the shared life cycle: interference, failure, travel ----------
 from patrolling_sim.algorithms import REGISTRY  # noqa: E402
 from patrolling_sim.algorithms.base import PatrolStrategy  # noqa: E402
-from patrolling_sim.graph import PatrolGraph, parse_graph  # noqa: E402
+from patrolling_sim.model.graph import PatrolGraph, parse_graph  # noqa: E402
 
 
 class _Plan(PatrolStrategy):
@@ -214,15 +214,15 @@ def test_unreachable_goal_fails_like_navigation(monkeypatch):
 
 
 def test_goal_fail_probability(monkeypatch, tmp_path):
-    from patrolling_sim import graph_sim
+    from patrolling_sim.graphsim import simulator as graph_sim
     count = {"goal": 0, "backup": 0}
-    send_goal = graph_sim._Robot.send_goal
+    send_goal = graph_sim.Robot.send_goal
 
     def counting_send_goal(robot, vertex, seq):
         count["goal"] += 1
         send_goal(robot, vertex, seq)
-    monkeypatch.setattr(graph_sim._Robot, "send_goal", counting_send_goal)
-    monkeypatch.setattr(graph_sim._Robot, "backup",
+    monkeypatch.setattr(graph_sim.Robot, "send_goal", counting_send_goal)
+    monkeypatch.setattr(graph_sim.Robot, "backup",
                         lambda robot: count.__setitem__("backup", count["backup"] + 1))
     kw = dict(map="grid", robots=2, alg="CR", duration=600, seed=3, interference=False)
     ok = GraphSimulator(GraphSimConfig(**kw)).run(write=False)
@@ -285,8 +285,8 @@ def test_skipped_feedback_work_changes_nothing(monkeypatch, mapname, n, alg, see
 
 
 def test_first_tick_at_is_the_first_lattice_point_not_before_t():
-    from patrolling_sim.graph_feedback import first_tick_at
-    from patrolling_sim.graph_config import FEEDBACK_PERIOD as P
+    from patrolling_sim.graphsim.feedback import first_tick_at
+    from patrolling_sim.graphsim.config import FEEDBACK_PERIOD as P
     for t in (0.0, 0.1, 0.2, 1029.0, 1029.0000001, 5145 * P, 5145 * P + 1e-12, 7.3, 3599.9):
         k = first_tick_at(t)
         assert k * P >= t and (k == 0 or (k - 1) * P < t), (t, k)

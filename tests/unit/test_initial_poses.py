@@ -4,12 +4,14 @@ import math
 import numpy as np
 import pytest
 
-from patrolling_sim import paths
-from patrolling_sim.errors import PatrolInputError
-from patrolling_sim.graph import PatrolGraph
-from patrolling_sim.initial_poses import (check_start_positions, compute_start_positions,
-                                          load_initial_poses, spread_vertices,
-                                          start_positions)
+from patrolling_sim.common import paths
+from patrolling_sim.model import map_bundle
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.model.graph import PatrolGraph
+from patrolling_sim.startpos.initial_poses import (check_start_positions,
+                                                   compute_start_positions,
+                                                   load_initial_poses, spread_vertices)
+from patrolling_sim.startpos.resolve import start_positions
 
 TABLE = load_initial_poses(paths.initial_poses_file())
 BUNDLES = {}
@@ -17,7 +19,7 @@ BUNDLES = {}
 
 def bundle(name):
     if name not in BUNDLES:
-        occ, G = paths.load_map_bundle(name)
+        occ, G = map_bundle.load_map_bundle(name)
         BUNDLES[name] = (occ, PatrolGraph(G))
     return BUNDLES[name]
 

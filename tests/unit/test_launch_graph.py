@@ -4,7 +4,7 @@ path the simulator would parse a second time."""
 import os
 import xml.etree.ElementTree as ET
 
-from patrolling_sim.graph import load_graph
+from patrolling_sim.model.graph import load_graph
 from patrolling_sim.runner.config import ExperimentConfig
 from patrolling_sim.runner.launchgen import generate_launch, graph_drawing
 

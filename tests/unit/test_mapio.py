@@ -3,9 +3,9 @@ import cv2
 import numpy as np
 import pytest
 
-from patrolling_sim import paths
-from patrolling_sim.errors import MapFormatError
-from patrolling_sim.mapio import FREE, OCCUPIED, UNKNOWN, load_map, read_image
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import MapFormatError
+from spqrel_nav_lite.mapio import FREE, OCCUPIED, UNKNOWN, load_map, read_image
 
 
 def _write_map(tmp_path, img, **meta):
@@ -138,7 +138,7 @@ def test_other_images_are_left_to_opencv(tmp_path, data):
 def test_clearance_of_one_cell_equals_the_grid_on_every_shipped_map():
     """clearance_at before the grid exists (a search around the cell) gives the grid's value,
     at 1500 random free cells and every fourth cell along the border of each map."""
-    from patrolling_sim.mapio import FREE as FREE_CELL, OccupancyMap
+    from spqrel_nav_lite.mapio import FREE as FREE_CELL, OccupancyMap
     rng = np.random.default_rng(0)
     for name in paths.available_maps():
         occ = load_map(paths.map_files(name)[0])

@@ -5,8 +5,8 @@ pytest.importorskip("visualization_msgs.msg")
 
 from visualization_msgs.msg import Marker  # noqa: E402
 
-from patrolling_sim import paths  # noqa: E402
-from patrolling_sim.graph import PatrolGraph, load_graph  # noqa: E402
+from patrolling_sim.common import paths  # noqa: E402
+from patrolling_sim.model.graph import PatrolGraph, load_graph  # noqa: E402
 from patrolling_sim.ros.markers import (build_marker_array, idleness_color,  # noqa: E402
                                         undirected_edges)
 

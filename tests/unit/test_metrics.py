@@ -1,5 +1,5 @@
-"""Metrics beyond the original's (patrolling_sim.metrics) on hand-computed visit logs, and
-the theoretical references (patrolling_sim.references) on graphs whose answer is known."""
+"""Metrics beyond the original's (patrolling_sim.monitor.metrics) on hand-computed visit logs, and
+the theoretical references (patrolling_sim.planning.references) on graphs whose answer is known."""
 import itertools
 import math
 
@@ -7,9 +7,9 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from patrolling_sim.graph import PatrolGraph
-from patrolling_sim.metrics import compute_metrics, read_visits
-from patrolling_sim.references import _held_karp, best_tour_length, references
+from patrolling_sim.model.graph import PatrolGraph
+from patrolling_sim.monitor.metrics import compute_metrics, read_visits
+from patrolling_sim.planning.references import _held_karp, best_tour_length, references
 
 
 def test_hand_computed_two_vertices():
@@ -137,7 +137,7 @@ def test_heuristic_tour_on_a_large_graph_is_close_to_the_grid_optimum():
 
 
 def test_graph_idleness_series_by_hand():
-    from patrolling_sim.metrics import graph_idleness_series
+    from patrolling_sim.monitor.metrics import graph_idleness_series
     t, s = graph_idleness_series([(2.0, 0, 0), (4.0, 1, 1), (6.0, 0, 0)], 2, 10.0, step=2.0)
     assert list(t) == [0, 2, 4, 6, 8, 10]
     # vertex 0 idleness 0,0,2,0,2,4; vertex 1: 0,2,0,2,4,6
@@ -145,7 +145,7 @@ def test_graph_idleness_series_by_hand():
 
 
 def test_failure_impact_on_a_synthetic_curve():
-    from patrolling_sim.metrics import failure_impact
+    from patrolling_sim.monitor.metrics import failure_impact
     t = np.arange(0.0, 3601.0)
     # 20 s before the failure at 1200 s; rises linearly to 30 s over 300 s; flat after
     y = np.where(t < 1200, 20.0, np.minimum(30.0, 20.0 + (t - 1200) / 30.0))

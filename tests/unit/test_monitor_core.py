@@ -7,8 +7,8 @@ import statistics
 
 import pytest
 
-from patrolling_sim.monitor_core import MonitorCore, population_sd
-from patrolling_sim.results import (INFO_FIELDS, ResultWriter, RunInfo, default_prefix,
+from patrolling_sim.monitor.core import MonitorCore, population_sd
+from patrolling_sim.monitor.results import (INFO_FIELDS, ResultWriter, RunInfo, default_prefix,
                                     info_line, parse_info_line, results_block)
 
 #: files written by the original C++ monitor (copied from the reference material)

@@ -7,7 +7,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from patrolling_sim.mapio import OccupancyMap, load_map
+from spqrel_nav_lite.mapio import OccupancyMap, load_map
 from spqrel_nav_lite import grid_search
 from spqrel_nav_lite.controller import ControllerParams, compute_command, front_clearance
 from spqrel_nav_lite.geometry import PoseHistory, compose, inverse, normalize_angle, relative
@@ -153,7 +153,7 @@ def test_planner_caches_obstacle_free_navigation_functions():
 
 
 def test_planner_on_shipped_map_all_vertices_reachable():
-    from patrolling_sim.graph import PatrolGraph
+    from patrolling_sim.model.graph import PatrolGraph
     m = load_map(os.path.join(ROOT, "maps", "cumberland", "cumberland.yaml"))
     g = PatrolGraph.load(os.path.join(ROOT, "maps", "cumberland", "cumberland.graph"))
     p = GlobalPlanner(m)

@@ -8,9 +8,10 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from patrolling_sim import validation
-from patrolling_sim.errors import PatrolInputError
-from patrolling_sim.runner.config import ExperimentConfig, process_layout
+from patrolling_sim.experiment import validation
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.experiment.validation import process_layout
+from patrolling_sim.runner.config import ExperimentConfig
 from patrolling_sim.runner.launchgen import generate_launch
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))

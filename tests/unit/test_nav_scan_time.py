@@ -10,7 +10,7 @@ import pytest
 rospy = pytest.importorskip("rospy", reason="rospy (Debian: python3-rospy) missing")
 from sensor_msgs.msg import LaserScan  # noqa: E402
 
-from patrolling_sim.mapio import OccupancyMap  # noqa: E402
+from spqrel_nav_lite.mapio import OccupancyMap  # noqa: E402
 from spqrel_nav_lite.geometry import PoseHistory  # noqa: E402
 from spqrel_nav_lite.move_base_node import MoveBase  # noqa: E402
 from spqrel_nav_lite.obstacles import ObstacleMemory, scan_points, to_world  # noqa: E402

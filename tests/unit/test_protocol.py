@@ -1,9 +1,9 @@
-"""The /results numbers are named once (patrolling_sim.protocol) and agree with the
+"""The /results numbers are named once (patrolling_sim.common.protocol) and agree with the
 protocol document and with every module that uses them."""
 import os
 import re
 
-from patrolling_sim import protocol
+from patrolling_sim.common import protocol
 from patrolling_sim.algorithms import base
 from patrolling_sim.runner import watch
 

@@ -1,4 +1,4 @@
-"""Reference tables (patrolling_sim.reference_docs, scripts/reference_docs.py) on a synthetic
+"""Reference tables (patrolling_sim.report.reference_docs, scripts/reference_docs.py) on a synthetic
 campaign folder: the table's numbers equal pandas' mean and SD, partial campaigns and
 excluded runs are labelled and counted, bad input fails in one line with exit 2 and writes
 nothing."""
@@ -14,8 +14,8 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim import reference_docs as rd  # noqa: E402
-from patrolling_sim.errors import PatrolInputError  # noqa: E402
+from patrolling_sim.report import reference_docs as rd  # noqa: E402
+from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
 
 SCRIPT = os.path.join(ROOT, "scripts", "reference_docs.py")
 METRIC_COLS = [c for c, _, _ in rd.METRICS]

@@ -6,7 +6,7 @@ import sys
 import pytest
 
 from patrolling_sim import algorithms
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
 from patrolling_sim.runner.config import ExperimentConfig
 
 NEW_MODULE = '''

@@ -352,8 +352,8 @@ def test_extended_metrics_from_the_visit_log_or_the_campaign_file(tmp_path):
     """A run's time-averaged and worst idleness: from its visit log (computed at load, the log
     then dropped), or from the <prefix>_metrics.yaml a campaign wrote beside it."""
     sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-    from patrolling_sim.metrics import compute_metrics, read_visits
-    from patrolling_sim.paths import vertex_count
+    from patrolling_sim.monitor.metrics import compute_metrics, read_visits
+    from patrolling_sim.model.map_bundle import vertex_count
     from patrolling_sim.report.loading import find_runs, load_run
     res = tmp_path / "res"
     p = subprocess.run([sys.executable, GRAPH_SIM, "--map", "grid", "--robots", "2", "--alg",
@@ -383,7 +383,7 @@ def test_extended_metrics_from_the_visit_log_or_the_campaign_file(tmp_path):
                                           ("99.0;0;3;inf;0", "Idleness")])
 def test_idleness_fast_parse_falls_back_to_the_checked_one(tmp_path, line, needle):
     sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-    from patrolling_sim.errors import PatrolInputError
+    from patrolling_sim.common.errors import PatrolInputError
     from patrolling_sim.report import loading
     prefix = write_run(str(tmp_path), "grid", 2, "CR", "h", "20260101_000000",
                        random.Random(3), 25, 30)

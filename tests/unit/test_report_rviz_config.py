@@ -54,8 +54,8 @@ def test_structure_for_six_robots_on_example():
 
 def test_view_follows_map_origin():
     # move_base_arena's yaml origin is (-5.375, -5.25): the centre moves with it
-    from patrolling_sim import paths
-    from patrolling_sim.mapio import load_map
+    from patrolling_sim.common import paths
+    from spqrel_nav_lite.mapio import load_map
     occ = load_map(paths.map_files("move_base_arena")[0])
     cfg = yaml.safe_load(gen("--map", "move_base_arena").stdout)
     view = cfg["Visualization Manager"]["Views"]["Current"]
@@ -89,7 +89,7 @@ def test_bad_arguments(args, needle):
 
 def test_experiment_config_for_runner():
     from patrolling_sim.report.rviz_config import experiment_config_text
-    from patrolling_sim.errors import PatrolInputError
+    from patrolling_sim.common.errors import PatrolInputError
     cfg = yaml.safe_load(experiment_config_text(3, "cumberland"))
     groups = displays_by_class(cfg)["rviz/Group"]
     assert [g["Enabled"] for g in groups] == [True, True, True]

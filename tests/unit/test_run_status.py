@@ -12,10 +12,11 @@ import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-from patrolling_sim import run_status as rs, validation  # noqa: E402
-from patrolling_sim.errors import PatrolInputError  # noqa: E402
-from patrolling_sim.monitor_core import MonitorCore  # noqa: E402
-from patrolling_sim.results import ResultWriter, RunInfo, parse_info_line  # noqa: E402
+from patrolling_sim.monitor import run_status as rs  # noqa: E402
+from patrolling_sim.experiment import validation
+from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
+from patrolling_sim.monitor.core import MonitorCore  # noqa: E402
+from patrolling_sim.monitor.results import ResultWriter, RunInfo, parse_info_line  # noqa: E402
 from patrolling_sim.runner.supervisor import RoslaunchLog, describe_node  # noqa: E402
 
 START = os.path.join(ROOT, "scripts", "start_experiments.py")
@@ -236,7 +237,7 @@ def test_batch_flags_reach_every_run(tmp_path):
 
 
 def test_user_map_results_never_collide_with_a_shipped_map(tmp_path):
-    from patrolling_sim import paths
+    from patrolling_sim.common import paths
     src = os.path.join(paths.maps_dir(), "grid")
     mine = tmp_path / "grid"
     shutil.copytree(src, mine)
@@ -254,7 +255,7 @@ def test_user_map_results_never_collide_with_a_shipped_map(tmp_path):
 
 
 def test_a_long_silence_is_named_when_the_run_did_not_fail():
-    from patrolling_sim.run_status import silence_warning
+    from patrolling_sim.monitor.run_status import silence_warning
     # robot 1 silent 230 s of a 300 s dead-robot time: named; 150 s (half) is not; robot 2
     # beyond 300 s is a FAIL, named by the status instead
     line = silence_warning([40.0, 230.4, 150.0], 300.0)

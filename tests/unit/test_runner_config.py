@@ -9,7 +9,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.runner.batch import expand_batch, load_batch
 from patrolling_sim.runner.config import ExperimentConfig, from_positional, load_config_file
 from patrolling_sim.runner.launchgen import generate_launch
@@ -211,8 +211,8 @@ def test_ros_agents_get_graph_modes_seeds(processes, tmp_path, monkeypatch):
     """With the same run seed a robot's agent is seeded alike in ROS mode and in graph mode
     (agent_core.agent_seed), so its strategy draws the same numbers (RAND's walk, the start
     delay) in both modes."""
-    from patrolling_sim import graph_sim
-    from patrolling_sim.agent_core import agent_seed
+    from patrolling_sim.graphsim import simulator as graph_sim
+    from patrolling_sim.agent.core import agent_seed
     cfg = base(results_dir=str(tmp_path), processes=processes, seed=3).validate()
     root = ET.fromstring(generate_launch(cfg, cfg.start_positions(), str(tmp_path / "p")))
     if processes == "shared":

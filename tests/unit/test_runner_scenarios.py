@@ -9,8 +9,8 @@ import xml.etree.ElementTree as ET
 import pytest
 import yaml
 
-from patrolling_sim.attrition import parse_attrition
-from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.scenarios.attrition import parse_attrition
+from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.runner.config import ExperimentConfig, load_config_file
 from patrolling_sim.runner.launchgen import generate_launch
 
@@ -132,9 +132,9 @@ def test_cli_options(tmp_path):
 
 
 def test_summary_line_reports_failures_and_messages(tmp_path):
-    from patrolling_sim.attrition import parse_attrition
+    from patrolling_sim.scenarios.attrition import parse_attrition
     from patrolling_sim.runner.cli import scenario_summary
-    from patrolling_sim.scenario import write_scenario
+    from patrolling_sim.scenarios.scenario import write_scenario
     prefix = str(tmp_path / "20260101_000000")
     assert scenario_summary(prefix) is None                    # no scenario, no line
     write_scenario(prefix, "bernoulli:p=0.2", "1@80+100,2@150", parse_attrition(

@@ -6,12 +6,13 @@ import os
 import pytest
 
 from patrolling_sim.algorithms import REGISTRY
-from patrolling_sim.errors import PatrolInputError
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator, main
-from patrolling_sim.metrics import read_visits
-from patrolling_sim.monitor_core import MonitorCore
-from patrolling_sim.run_status import read_run_yaml
-from patrolling_sim.scenario import check_scenario, read_scenario, scenario_columns
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.graphsim.cli import main
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
+from patrolling_sim.monitor.metrics import read_visits
+from patrolling_sim.monitor.core import MonitorCore
+from patrolling_sim.monitor.run_status import read_run_yaml
+from patrolling_sim.scenarios.scenario import check_scenario, read_scenario, scenario_columns
 
 
 def run(tmp_path, **kw):
@@ -114,7 +115,7 @@ def test_grid_six_robots_two_failures_at_1200(tmp_path, alg):
         # DTAP's idleness still falls after 1200 s without failure (its task sets are still
         # converging), so compare with the same seed's run without failure
         base = run(tmp_path / "base", robots=6, alg=alg, duration=3600, seed=0)[0]
-        from patrolling_sim.metrics import failure_impact, graph_idleness_series
+        from patrolling_sim.monitor.metrics import failure_impact, graph_idleness_series
         t, s = graph_idleness_series(visits(base), base.g.n, 3600.0)
         assert cols["idl_after"] > failure_impact(t, s, 1200.0, 3600.0).after
         # its silence hook: no survivor keeps a bid won by a failed robot
@@ -147,7 +148,7 @@ def test_every_algorithm_keeps_running_after_one_failure(tmp_path, alg):
     else:
         # still converging at 1200 s: compare with the same seed's run without failure
         base = run(tmp_path / "base", robots=6, alg=alg, duration=3600, seed=0)[0]
-        from patrolling_sim.metrics import failure_impact, graph_idleness_series
+        from patrolling_sim.monitor.metrics import failure_impact, graph_idleness_series
         t, s = graph_idleness_series(visits(base), base.g.n, 3600.0)
         assert cols["idl_after"] > failure_impact(t, s, 1200.0, 3600.0).after
 
@@ -262,7 +263,7 @@ def test_cli_runs_a_scenario_and_records_it(tmp_path, capsys):
 
 
 def test_scenario_metrics_give_each_failure_its_impact(tmp_path):
-    from patrolling_sim.scenario import scenario_metrics
+    from patrolling_sim.scenarios.scenario import scenario_metrics
     sim, _ = run(tmp_path, robots=6, alg="SEBS", duration=3000, seed=0,
                  attrition="2@1000,4@1000,1@2000", comm="bernoulli:p=0.1")
     m = scenario_metrics(sim.prefix, sim.g.n, 3000.0)
@@ -301,7 +302,7 @@ def test_core_fail_and_repair_with_a_fake_world():
 
 
 def test_core_applies_the_model_at_the_receiver_with_its_delay():
-    from patrolling_sim.agent_faults import make_comm
+    from patrolling_sim.agent.faults import make_comm
     from test_agent_core import started
     assert make_comm("perfect", 1) is None and make_comm(None, 1) is None
     core, world, log = started(robot_id=1, comm=make_comm("perfect;delay=const:0.5", 1))

@@ -8,12 +8,12 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim import paths  # noqa: E402
-from patrolling_sim.graph import PatrolGraph, parse_graph  # noqa: E402
-from patrolling_sim.graph_sim import GraphSimConfig, GraphSimulator  # noqa: E402
-from patrolling_sim.routes import route_cost  # noqa: E402
+from patrolling_sim.common import paths  # noqa: E402
+from patrolling_sim.model.graph import PatrolGraph, parse_graph  # noqa: E402
+from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
+from patrolling_sim.planning.routes import route_cost  # noqa: E402
 from patrolling_sim.runner.config import ExperimentConfig  # noqa: E402
-from patrolling_sim.startpos import (kcentre_start_vertices, optimised_start_vertices,  # noqa: E402
+from patrolling_sim.startpos.optimised import (kcentre_start_vertices, optimised_start_vertices,  # noqa: E402
                                      probe_route, strategy_kind)
 
 

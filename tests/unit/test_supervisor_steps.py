@@ -6,8 +6,8 @@ import types
 
 import yaml
 
-from patrolling_sim import run_status as rs
-from patrolling_sim.results import claim_prefix, hostname
+from patrolling_sim.monitor import run_status as rs
+from patrolling_sim.monitor.results import claim_prefix, hostname
 from patrolling_sim.runner import outcome
 from patrolling_sim.runner.config import ExperimentConfig
 from patrolling_sim.runner.supervisor import claim_prefix as runner_claim

@@ -13,8 +13,8 @@ import rostest
 from move_base_msgs.msg import MoveBaseActionGoal
 
 import patrol_test_utils as U
-from patrolling_sim import paths
-from patrolling_sim.graph import PatrolGraph, load_graph
+from patrolling_sim.common import paths
+from patrolling_sim.model.graph import PatrolGraph, load_graph
 
 
 class TestGoalFailure(unittest.TestCase):

@@ -9,7 +9,8 @@ import rospy
 import rostest
 from geometry_msgs.msg import PoseArray
 
-from patrolling_sim import paths
+from patrolling_sim.common import paths
+from patrolling_sim.model import map_bundle
 
 
 class TestInitialPoses(unittest.TestCase):
@@ -20,7 +21,7 @@ class TestInitialPoses(unittest.TestCase):
         self.assertEqual(len(msg.poses), n)
         flat = rospy.get_param("/initial_pos")
         self.assertEqual(len(flat), 2 * n)
-        occ, _ = paths.load_map_bundle("grid")
+        occ, _ = map_bundle.load_map_bundle("grid")
         pts = [(p.position.x, p.position.y) for p in msg.poses]
         for k, (x, y) in enumerate(pts):
             self.assertAlmostEqual(flat[2 * k], x, places=6)

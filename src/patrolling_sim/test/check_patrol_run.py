@@ -12,7 +12,7 @@ import rosgraph
 import rospy
 import rostest
 from nav_msgs.msg import Odometry
-from patrolling_sim.agent_core import ANNOUNCE_PERIOD
+from patrolling_sim.agent.core import ANNOUNCE_PERIOD
 from visualization_msgs.msg import MarkerArray
 
 import patrol_test_utils as U

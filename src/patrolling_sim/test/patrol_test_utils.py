@@ -129,7 +129,7 @@ def node_pid(node_name):
 
 
 def reference_dir():
-    from patrolling_sim import paths
+    from patrolling_sim.common import paths
     return os.path.join(paths.data_root(), "tests", "unit", "data", "original_output_example")
 
 

@@ -40,7 +40,7 @@ from rosgraph_msgs.msg import Clock
 from move_base_msgs.msg import MoveBaseAction, MoveBaseFeedback, MoveBaseResult
 from std_srvs.srv import Empty, EmptyResponse
 
-from patrolling_sim.errors import PatrolInputError
+from patrolling_sim.common.errors import PatrolInputError
 
 
 class FakeRobot:
@@ -148,8 +148,8 @@ class FakeMoveBase:
         self.abort_xy = []
         abort = list(rospy.get_param("~abort_vertices", []))
         if abort:
-            from patrolling_sim.graph import PatrolGraph, load_graph
-            from patrolling_sim.paths import map_files
+            from patrolling_sim.model.graph import PatrolGraph, load_graph
+            from patrolling_sim.common.paths import map_files
             _, gpath = map_files(rospy.get_param("~map"))
             g = PatrolGraph(load_graph(gpath))
             self.abort_xy = [tuple(g.pos[int(v)]) for v in abort]

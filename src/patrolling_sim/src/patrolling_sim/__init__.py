@@ -1,14 +1,13 @@
 """patrolling_sim: multi-robot patrolling simulation and benchmarking.
 
-The modules directly under this package form the *pure core*: they import neither rospy
-nor any ROS message and can be used (and tested) without a ROS master.
+Subpackages, by layer from the bottom up (a layer imports only layers below it; the order is
+checked by the import contracts in ``.importlinter`` and explained in docs/architecture.md):
 
-- :mod:`patrolling_sim.graph`         -- ``.graph`` patrol graph reader/writer (networkx)
-- :mod:`patrolling_sim.mapio`         -- map_server yaml + image reader (spqrel_nav_lite.mapio)
-- :mod:`patrolling_sim.initial_poses` -- start positions (shipped table or computed)
-- :mod:`patrolling_sim.msp_routes`    -- MSP route files
-- :mod:`patrolling_sim.dta_params`    -- DTA ``.params`` files
-- :mod:`patrolling_sim.paths`         -- where shipped maps and parameters live
+``common`` -- ``model`` -- ``planning`` -- ``algorithms`` -- ``startpos`` -- ``monitor`` --
+``scenarios`` -- ``agent`` -- ``extraction`` -- ``experiment`` -- ``graphsim`` -- ``report``
+-- ``runner`` | ``ros`` -- ``campaign``.
+
+Everything but ``ros`` and ``runner`` imports no ROS module and runs without a master.
 """
 __version__ = "0.1.0"
 

@@ -2,7 +2,7 @@
 
 An error caused by user input (a map file, a parameter) is an :class:`InputError` whose
 message is one line naming the culprit and what is wrong with it. patrolling_sim uses the
-same class for its own input errors (``patrolling_sim.errors.PatrolInputError``), so one
+same class for its own input errors (``patrolling_sim.common.errors.PatrolInputError``), so one
 ``except`` catches both.
 """
 

@@ -14,8 +14,8 @@ import logging
 import os
 import pkgutil
 
-from .base import REGISTRY, PatrolStrategy, StrategyContext, Driver, register  # noqa: F401
-from .base import argmax_random, create, names  # noqa: F401,E402
+from patrolling_sim.algorithms.base import REGISTRY, PatrolStrategy, StrategyContext, Driver, register  # noqa: F401
+from patrolling_sim.algorithms.base import argmax_random, create, names  # noqa: F401,E402
 
 _log = logging.getLogger(__name__)
 #: modules already imported by :func:`discover` (name -> file), and those that failed

@@ -4,7 +4,7 @@ protocol through which it acts on the world.
 A *strategy* holds one robot's knowledge (graph, idleness tables, what it heard from
 teammates) and makes that robot's decisions. It never talks to ROS or to a simulator
 directly: everything goes through its *driver*, the robot's life cycle
-(:class:`patrolling_sim.agent_core.PatrolAgentCore`), which is the same object in the ROS
+(:class:`patrolling_sim.agent.core.PatrolAgentCore`), which is the same object in the ROS
 PatrolAgent node and in the graph-level simulator.
 
 Hooks, in the order the life cycle calls them (``docs/protocol.md``, section 3)::
@@ -36,11 +36,11 @@ import random
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from ..graph import PatrolGraph
+from patrolling_sim.model.graph import PatrolGraph
 
 # message types and int16 caps on /results (docs/protocol.md): named once in
-# patrolling_sim.protocol, re-exported here for the algorithms
-from ..protocol import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_GBS_REACHED,  # noqa: F401
+# patrolling_sim.common.protocol, re-exported here for the algorithms
+from patrolling_sim.common.protocol import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_GBS_REACHED,  # noqa: F401
                         MSG_INIT, MSG_INTERFERENCE, MSG_SEBS_REACHED, MSG_SSI_BID,
                         MSG_SSI_TASK_REQUEST, MSG_TARGET_REACHED, MSG_ROBOT_STATUS)
 #: ``[i, 13, 0]`` robot i failed, ``[i, 13, 1]`` it is back (docs/scenarios.md)
@@ -49,7 +49,7 @@ MSG_FAILURE = MSG_ROBOT_STATUS
 
 class Driver:
     """What a strategy may ask of the world. Implemented by the life cycle
-    (:class:`patrolling_sim.agent_core.PatrolAgentCore`) in both modes; tests use fakes."""
+    (:class:`patrolling_sim.agent.core.PatrolAgentCore`) in both modes; tests use fakes."""
 
     def now(self) -> float:
         """Current time (s)."""

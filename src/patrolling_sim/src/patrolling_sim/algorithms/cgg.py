@@ -3,13 +3,13 @@
 All robots build the same closed route over the whole graph, rotate it to begin at the first
 occurrence of their own start vertex and follow it forever (skipping the repeated endpoint).
 The route is the original's: a Hamiltonian path found by its seeded randomised walk
-(:func:`patrolling_sim.routes.hamiltonian_route`), closed by walking it back -- on grid
+(:func:`patrolling_sim.planning.routes.hamiltonian_route`), closed by walking it back -- on grid
 ``0 1 6 5 10 11 16 15 20 21 22 17 18 23 24 19 14 9 4 3 2 7 12 13 8`` and back, 48 edges;
 a Hamiltonian circuit where the walk finds one. The construction is seeded, so it has no
 random element: the same route on every run.
 
 Where the walk finds neither (every shipped map but grid) the route is the original's
-second construction (:func:`patrolling_sim.cyclic_route.cyclic_route`): its longest cycle or
+second construction (:func:`patrolling_sim.planning.cyclic_route.cyclic_route`): its longest cycle or
 longest path between degree-1 vertices, with detours over the edges it misses (``num_arcs``
 bisected), a path walked back. Should that construction fail (no cycle of V/2 entries and
 no two degree-1 vertices, a search over its step bound, or a route missing a vertex), this
@@ -18,9 +18,9 @@ one-line warning (see docs/fidelity.md). ``CGG_TSP`` always uses that tour.
 """
 import logging
 
-from ..cyclic_route import RouteConstructionError, cyclic_route
-from ..routes import closed_route, hamiltonian_route
-from .base import PatrolStrategy, register
+from patrolling_sim.planning.cyclic_route import RouteConstructionError, cyclic_route
+from patrolling_sim.planning.routes import closed_route, hamiltonian_route
+from patrolling_sim.algorithms.base import PatrolStrategy, register
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """CR, Conscientious Reactive: go to the neighbour this robot visited least recently
 (its own, local idleness; Machado et al. 2002)."""
-from .base import PatrolStrategy, argmax_random, register
+from patrolling_sim.algorithms.base import PatrolStrategy, argmax_random, register
 
 
 @register

@@ -17,8 +17,8 @@ from it (path costs from the contested vertex) and heads to the new goal.
 """
 import numpy as np
 
-from .base import MSG_DTA_IDLENESS, PatrolStrategy, register
-from .dta_common import IdlenessEstimate, decode_seconds, dta_params
+from patrolling_sim.algorithms.base import MSG_DTA_IDLENESS, PatrolStrategy, register
+from patrolling_sim.algorithms.dta_common import IdlenessEstimate, decode_seconds, dta_params
 
 DEFAULTS = {"theta_idleness": 1.0, "theta_navigation": -0.75,
             "theta_distance_from_origin": -5.0}

@@ -39,9 +39,9 @@ once instead.
 """
 import numpy as np
 
-from .base import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID,
+from patrolling_sim.algorithms.base import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID,
                    MSG_SSI_TASK_REQUEST, PatrolStrategy, register)
-from .dta_common import (IdlenessEstimate, VersionedDict, decode_seconds, dta_params,
+from patrolling_sim.algorithms.dta_common import (IdlenessEstimate, VersionedDict, decode_seconds, dta_params,
                          path_hops)
 
 DEFAULTS = {"timeout": 3.0, "theta_idleness": 1.0, "theta_navigation": 0.0,

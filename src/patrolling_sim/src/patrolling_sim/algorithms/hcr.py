@@ -4,7 +4,7 @@ Score of neighbour w of the current vertex u, with dmax and imax taken over the 
 ``(dmax - c(u,w)) / dmax + idl[w] / imax`` (the idleness term is 0 when imax is 0).
 Idleness is local: only this robot's own visits count.
 """
-from .base import PatrolStrategy, argmax_random, register
+from patrolling_sim.algorithms.base import PatrolStrategy, argmax_random, register
 
 
 @register

@@ -13,7 +13,7 @@ import heapq
 
 import numpy as np
 
-from .base import PatrolStrategy, register
+from patrolling_sim.algorithms.base import PatrolStrategy, register
 
 
 @register

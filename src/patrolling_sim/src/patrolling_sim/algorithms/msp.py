@@ -4,8 +4,8 @@ The graph is split into N balanced connected regions, one per robot, and each ro
 over a closed route of its own region. The original read offline route files
 ``MSP/<map>/<map>_<N>_<i>``; those are used when they are valid closed walks on the current
 graph (grid's are), otherwise (stale files, or no file for this team size) the partition and
-routes are computed here: :func:`patrolling_sim.routes.balanced_partition` plus
-:func:`patrolling_sim.routes.closed_route` per region. All robots compute the same partition;
+routes are computed here: :func:`patrolling_sim.planning.routes.balanced_partition` plus
+:func:`patrolling_sim.planning.routes.closed_route` per region. All robots compute the same partition;
 regions are matched to robots by start position when the team's start vertices are known
 (``ctx.params['start_vertices']``), else region i goes to robot i. ``MSP_BAL``
 (:mod:`~patrolling_sim.algorithms.msp_bal`) always uses the computed partition.
@@ -13,12 +13,12 @@ regions are matched to robots by start position when the team's start vertices a
 import logging
 import os
 
-from .. import paths
-from ..errors import PatrolInputError
-from ..msp_routes import load_route
-from ..routes import balanced_partition, closed_route
-from .base import PatrolStrategy, register
-from .cgg import RouteFollower, rotate_to
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.planning.msp_routes import load_route
+from patrolling_sim.planning.routes import balanced_partition, closed_route
+from patrolling_sim.algorithms.base import PatrolStrategy, register
+from patrolling_sim.algorithms.cgg import RouteFollower, rotate_to
 
 log = logging.getLogger(__name__)
 

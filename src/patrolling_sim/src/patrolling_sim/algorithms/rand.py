@@ -1,5 +1,5 @@
 """RAND: go to a uniformly random neighbour (Machado et al. 2002)."""
-from .base import PatrolStrategy, register
+from patrolling_sim.algorithms.base import PatrolStrategy, register
 
 
 @register

@@ -20,14 +20,21 @@ import os
 import numpy as np
 import pandas as pd
 
-from .. import paths
-from ..errors import PatrolInputError
-from . import html as H
-from . import plots
-from .loading import load_runs
-from .stats import pvalue_matrices, significance
-from .table import (METRIC_LABELS, METRICS, fmt_mean_sd, group_columns, run_table,
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.report import html as H
+from patrolling_sim.report import plots
+from patrolling_sim.report.loading import load_runs
+from patrolling_sim.report.stats import pvalue_matrices, significance
+from patrolling_sim.report.table import (METRIC_LABELS, METRICS, fmt_mean_sd, group_columns, run_table,
                     summary_table, varying_settings)
+from patrolling_sim.model.graph import PatrolGraph
+from patrolling_sim.model.graph import load_graph
+from patrolling_sim.monitor import run_status as rs
+from patrolling_sim.monitor.run_status import silence_warning
+from patrolling_sim.planning.references import references
+from patrolling_sim.report.scenarios import scenario_section
+from spqrel_nav_lite.mapio import load_map
 
 log = logging.getLogger(__name__)
 
@@ -41,8 +48,6 @@ def _settings_label(row, settings):
 def _load_map(name, cache, warnings):
     if name in cache:
         return cache[name]
-    from ..graph import load_graph
-    from ..mapio import load_map
     try:
         yaml_path, graph_path = paths.map_files(name)
         occ = load_map(yaml_path)
@@ -56,15 +61,13 @@ def _load_map(name, cache, warnings):
 
 def _references(name, n, cache, ref_cache):
     """The theoretical references of map ``name`` for ``n`` robots at 1 m/s
-    (:mod:`patrolling_sim.references`), None if the map cannot be read."""
+    (:mod:`patrolling_sim.planning.references`), None if the map cannot be read."""
     key = (name, int(n))
     if key not in ref_cache:
         loaded = _load_map(name, cache, [])
         if loaded is None:
             ref_cache[key] = None
         else:
-            from ..graph import PatrolGraph
-            from ..references import references
             ref_cache[key] = references(PatrolGraph(loaded[1]), int(n), 1.0, name)
     return ref_cache[key]
 
@@ -72,7 +75,6 @@ def _references(name, n, cache, ref_cache):
 def select_runs(runs, include_fail=False):
     """(used, excluded): a report averages only runs that ended normally (TIMEOUT, CYCLES,
     STOPPED; FAIL too with ``include_fail``); ``excluded`` is [(run, why)]."""
-    from .. import run_status as rs
     ok = set(rs.NORMAL_ENDS) | ({rs.FAIL} if include_fail else set())
     used, excluded = [], []
     for r in runs:
@@ -109,7 +111,6 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
             "argument RESULTS_DIR: no complete run to report ("
             + ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
             + "; only TIMEOUT/CYCLES/STOPPED runs are used, FAIL with --include-fail)")
-    from ..run_status import silence_warning
     for r in runs:              # a robot that stood still for minutes in a complete run
         line = silence_warning(r.silences, r.dead_robot_timeout)
         if line:
@@ -316,7 +317,6 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
                       f"{r['longest_silence']:.1f} (robot {r['longest_silence_robot']})",
                       r["status"]])
     sections.append(("Runs", H.table(rheader, rrows, text_cols=(0, 1, 10, 11))))
-    from .scenarios import scenario_section     # runs with failures / a comm model
     scen = scenario_section(runs, out_dir)
     if scen is not None:
         sections.append(("Scenarios", scen[0]))

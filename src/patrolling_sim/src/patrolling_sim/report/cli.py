@@ -2,7 +2,8 @@
 import logging
 import sys
 
-from ..cli import CliParser, run_main, setup_logging
+from patrolling_sim.common.cli import CliParser, run_main, setup_logging
+from patrolling_sim.report.build import build_report
 
 PROG = "report.py"
 
@@ -31,7 +32,6 @@ def main(argv):
         parser().error("argument --title: empty title")
     setup_logging()
     logging.getLogger("matplotlib").setLevel(logging.WARNING)
-    from .build import build_report
     res = build_report(args.dirs, args.out, args.title, run_plots=not args.no_run_plots,
                        include_fail=args.include_fail)
     if not args.quiet:

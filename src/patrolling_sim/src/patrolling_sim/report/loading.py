@@ -10,7 +10,7 @@ without an ``_info.csv`` belongs to a run that did not finish (killed, crashed, 
 running): it is skipped with a one-line warning. A malformed info.csv or idleness.csv is an
 error (:class:`PatrolInputError` naming the file and the problem).
 
-Each run's *status* (how it ended, :mod:`patrolling_sim.run_status`) comes from
+Each run's *status* (how it ended, :mod:`patrolling_sim.monitor.run_status`) comes from
 ``<prefix>_run.yaml``. Older result folders have none: the status is then inferred from
 info.csv's termination field, checked against ``<prefix>_config.yaml`` when it exists (a
 run that says TIMEOUT but reached less simulated time than its configured timeout was cut
@@ -25,7 +25,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..errors import PatrolInputError
+from patrolling_sim.common.errors import PatrolInputError
+import yaml
+from patrolling_sim.common import paths
+from patrolling_sim.model import map_bundle
+from patrolling_sim.monitor import run_status as rs
+from patrolling_sim.monitor.metrics import compute_metrics
+from patrolling_sim.monitor.metrics import read_visits
+from patrolling_sim.monitor.run_status import read_run_yaml
+from patrolling_sim.monitor.run_status import silences_of
 
 log = logging.getLogger(__name__)
 
@@ -249,7 +257,6 @@ def find_runs(dirs):
 def _config_number(prefix, key):
     """The number ``key`` of ``<prefix>_config.yaml`` (written by the runner), or None if
     there is no such file or value."""
-    import yaml
     try:
         with open(prefix + "_config.yaml", encoding="utf-8") as f:
             return float((yaml.safe_load(f) or {})[key])
@@ -260,7 +267,6 @@ def _config_number(prefix, key):
 def run_status_of(prefix, info, rec=False):
     """(status, note) of a run: from ``<prefix>_run.yaml`` (``rec``: its record when already
     read, None if it has none), else inferred (see the module docstring)."""
-    from .. import run_status as rs
     if rec is False:
         rec = rs.read_run_yaml(prefix)
     if rec and rec.get("status"):
@@ -307,7 +313,6 @@ def load_run(prefix, slim=False):
     if slim:
         samples = pd.DataFrame({"Node": samples["Node"].astype(np.int32),
                                 "Idleness": samples["Idleness"]})
-    from ..run_status import read_run_yaml, silences_of
     rec = read_run_yaml(prefix)
     status, note = run_status_of(prefix, info, rec)
     run = Run(prefix=prefix, info=info, samples=samples, status=status, status_note=note)
@@ -318,7 +323,6 @@ def load_run(prefix, slim=False):
     if run.extended is None or scenario:
         visits = None
         if os.path.isfile(prefix + "_visits.csv"):
-            from ..metrics import read_visits
             try:
                 visits = read_visits(prefix + "_visits.csv")
             except ValueError as e:
@@ -336,7 +340,6 @@ def _stored_extended(prefix):
     path = prefix + "_metrics.yaml"
     if not os.path.isfile(path):
         return None
-    import yaml
     try:
         with open(path, encoding="utf-8") as f:
             doc = yaml.load(f, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
@@ -350,12 +353,10 @@ def _extended_from_visits(visits, info):
     NaN without a log, a duration or a readable graph of the map."""
     if visits is None or not info["sim_duration"]:
         return (math.nan, math.nan)
-    from .. import paths
     try:
-        n = paths.vertex_count(info["map"])
+        n = map_bundle.vertex_count(info["map"])
     except Exception:                          # noqa: BLE001 - unreadable map: no metric
         return (math.nan, math.nan)
-    from ..metrics import compute_metrics
     m = compute_metrics(visits, n, float(info["sim_duration"]))
     return (m.time_avg_idleness, m.worst_idleness)
 

@@ -49,7 +49,7 @@ def algorithm_colors(algorithms):
 def boxplot_figure(title, boxes, colors, refs=None):
     """boxes: list of (label, algorithm, samples array). Whiskers 1.5 IQR, outliers as dots,
     means as white diamonds. refs: per box, the theoretical references of its map and team
-    size (:class:`patrolling_sim.references.References` at 1 m/s, or None), drawn as short
+    size (:class:`patrolling_sim.planning.references.References` at 1 m/s, or None), drawn as short
     lines across the box: dashed the cyclic reference L/(N v), dotted the partition one."""
     n = len(boxes)
     fig = Figure(figsize=(max(6.0, 0.75 * n + 2.0), 5.0))

@@ -13,6 +13,8 @@ plus the map (``rviz/Map`` on ``/map``) and the patrol graph (``rviz/MarkerArray
 map when a map is given. Displays whose topic has no publisher only show a status warning.
 """
 import yaml
+from patrolling_sim.common import paths
+from spqrel_nav_lite.mapio import load_map
 
 #: one colour per robot (R; G; B), cycling; robot 0 is not blue/red so that its laser stays
 #: visible over the graph markers (blue edges, red-to-green vertices)
@@ -185,8 +187,6 @@ def experiment_config_text(robots, map_name):
     Raises:
         PatrolInputError: unknown map or unreadable map files.
     """
-    from .. import paths
-    from ..mapio import load_map
     extent = map_extent(load_map(paths.map_files(map_name)[0]))
     return config_text(robots, robots, extent,
                        header=[f"rviz configuration for {robots} robot(s) on {map_name}"])

@@ -9,8 +9,13 @@ import os
 import numpy as np
 from matplotlib.figure import Figure
 
-from . import html as H
-from .plots import TIME_LABEL, algorithm_colors, save, slug
+from patrolling_sim.report import html as H
+from patrolling_sim.report.plots import TIME_LABEL, algorithm_colors, save, slug
+from patrolling_sim.common import paths
+from patrolling_sim.model import map_bundle
+from patrolling_sim.monitor.metrics import graph_idleness_series
+from patrolling_sim.scenarios.scenario import read_scenario
+from patrolling_sim.scenarios.scenario import scenario_columns
 
 log = logging.getLogger(__name__)
 
@@ -21,8 +26,6 @@ def _fmt(x, nd=1):
 
 def collect(runs):
     """[(run, scenario doc, columns, n_vertices)] of the runs with a scenario file."""
-    from .. import paths
-    from ..scenario import read_scenario, scenario_columns
     out = []
     for r in runs:
         try:
@@ -33,7 +36,7 @@ def collect(runs):
         if doc is None:
             continue
         try:
-            n = paths.vertex_count(r.info["map"])
+            n = map_bundle.vertex_count(r.info["map"])
         except Exception:               # a map that is not shipped: no impact columns
             n = None
         cols = scenario_columns(r.prefix, n, float(r.info["sim_duration"])) if n else {}
@@ -87,7 +90,6 @@ def _summary_table(groups):
 
 def scenario_section(runs, out_dir):
     """(html, files) of the section, or None if no run has a scenario file."""
-    from ..metrics import graph_idleness_series
     items = collect(runs)
     if not items:
         return None

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from .table import group_columns
+from patrolling_sim.report.table import group_columns
 
 
 def holm(pvalues):

@@ -19,7 +19,7 @@ delay), so runs made under different settings are never averaged together.
 import numpy as np
 import pandas as pd
 
-from ..run_status import longest_silence
+from patrolling_sim.monitor.run_status import longest_silence
 
 KEY = ("map", "N", "algorithm")
 #: settings that split groups when they differ between loaded runs

@@ -1,4 +1,4 @@
-"""The PatrolAgent node: ROS glue around :class:`patrolling_sim.agent_core.PatrolAgentCore`,
+"""The PatrolAgent node: ROS glue around :class:`patrolling_sim.agent.core.PatrolAgentCore`,
 the one implementation of a robot's life cycle (see ``docs/protocol.md``).
 
 This module only connects the core to ROS: the ``robot_i/move_base`` action client (goals,
@@ -23,14 +23,16 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Int16MultiArray
 from std_srvs.srv import Empty
 
-from .. import algorithms, paths
-from ..agent_core import Effects, build_agent
-from ..algorithms.base import MSG_FAILURE
-from ..errors import PatrolInputError
-from ..graph import PatrolGraph, load_graph
-from .agent_scenario import AgentScenario
-from .agent_params import (AgentError, clamp_int16, float_param, parse_ids,  # noqa: F401
+from patrolling_sim import algorithms
+from patrolling_sim.common import paths
+from patrolling_sim.agent.core import Effects, build_agent
+from patrolling_sim.algorithms.base import MSG_FAILURE
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.model.graph import PatrolGraph, load_graph
+from patrolling_sim.ros.agent_scenario import AgentScenario
+from patrolling_sim.ros.agent_params import (AgentError, clamp_int16, float_param, parse_ids,  # noqa: F401
                            parse_robot_frame, read_common_params, start_vertex_from)
+import sys
 
 SERVER_LOG_PERIOD = 5.0        # s between "waiting for move_base" log lines
 
@@ -316,7 +318,6 @@ def publish_unless_stopping(pub, msg):
 
 def main(argv=None):
     """Entry point of ``nodes/patrol_agent``: ``patrol_agent <map> <i>`` + private params."""
-    import sys
     argv = rospy.myargv(sys.argv if argv is None else argv)
     args = argv[1:]
     rid = None
@@ -354,7 +355,6 @@ def main_multi(argv=None):
     process means each ``/positions`` and ``/results`` message is received once for all of
     them instead of once per agent (the N x N fan-out is what costs most with many robots).
     The node ends when the monitor's END arrives or on shutdown."""
-    import sys
     argv = rospy.myargv(sys.argv if argv is None else argv)
     args = argv[1:]
     rospy.init_node("patrol_agents", disable_signals=False)

@@ -6,8 +6,8 @@ import re
 
 import rospy
 
-from .. import algorithms
-from ..algorithms.base import INT16_MAX
+from patrolling_sim import algorithms
+from patrolling_sim.algorithms.base import INT16_MAX
 
 INT16_MIN = -32768
 _ROBOT_FRAME = re.compile(r"robot_(\d+)(?:/|$)")

@@ -1,7 +1,7 @@
 """The scenario of one ROS agent: its communication model and its scheduled failures
 (docs/scenarios.md, "ROS mode").
 
-Communication: the agent core applies the model (:mod:`patrolling_sim.comm`) where a message
+Communication: the agent core applies the model (:mod:`patrolling_sim.scenarios.comm`) where a message
 is *received* (on ROS a broadcast is one publish, so per-link decisions belong to the
 receiver); this module reads ``/comm_model`` and hands the core the model's spec (seeded by
 the core from the agent's own seed, i.e. from the run's seed), for the range model the
@@ -23,14 +23,15 @@ import time
 
 import rospy
 
-from .. import paths
-from ..agent_core import END, GO, MONITOR_ID
-from ..algorithms.base import MSG_INIT
-from ..attrition import parse_attrition
-from ..comm import parse_comm
-from ..errors import PatrolInputError
-from ..scenario import is_perfect
-from .agent_params import AgentError
+from patrolling_sim.common import paths
+from patrolling_sim.model import map_bundle
+from patrolling_sim.agent.core import END, GO, MONITOR_ID
+from patrolling_sim.algorithms.base import MSG_INIT
+from patrolling_sim.scenarios.attrition import parse_attrition
+from patrolling_sim.scenarios.comm import parse_comm
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.scenarios.scenario import is_perfect
+from patrolling_sim.ros.agent_params import AgentError
 
 COUNTERS_PERIOD = 2.0          # wall s between two counter updates
 COUNTERS_PARAM = "/scenario_counters/robot_{}"
@@ -50,7 +51,7 @@ class AgentScenario:
             model = parse_comm(self.spec, what="/comm_model")
             self.occupancy = None
             if model.name == "range":
-                self.occupancy = paths.load_map_bundle(map_arg)[0]
+                self.occupancy = map_bundle.load_map_bundle(map_arg)[0]
             schedule = parse_attrition(str(rospy.get_param("/attrition", "none") or "none"),
                                        team_size, what="/attrition")
         except PatrolInputError as e:

@@ -30,7 +30,7 @@ def undirected_edges(graph):
 
 
 def build_marker_array(graph, idleness, stamp=None, frame_id="map"):
-    """MarkerArray of ``graph`` (a :class:`patrolling_sim.graph.PatrolGraph`) with vertices
+    """MarkerArray of ``graph`` (a :class:`patrolling_sim.model.graph.PatrolGraph`) with vertices
     coloured by ``idleness`` (one value per vertex, seconds)."""
     if len(idleness) != graph.n:
         raise ValueError(f"idleness has {len(idleness)} values for {graph.n} vertices")

@@ -1,8 +1,8 @@
 """The monitor node (docs/monitor.md): handshake, visit processing,
 metrics and result files, termination.
 
-All measurements are made by :class:`patrolling_sim.monitor_core.MonitorCore` and written
-by :class:`patrolling_sim.results.ResultWriter`; this module is the ROS glue:
+All measurements are made by :class:`patrolling_sim.monitor.core.MonitorCore` and written
+by :class:`patrolling_sim.monitor.results.ResultWriter`; this module is the ROS glue:
 
 - counts ``[id,10,1]``; when all N robots announced, GO ``[-1,10,100]`` (3 times, 0.5 s
   apart, and again whenever a robot announces after GO) and time zero;
@@ -11,7 +11,7 @@ by :class:`patrolling_sim.results.ResultWriter`; this module is the ROS glue:
 - ends on ``~timeout`` (sim s since GO, "TIMEOUT"), ``~cycles`` complete cycles ("CYCLES"),
   a robot silent for ``~dead_robot_timeout`` s ("FAIL"), ``/simulation_abort`` true
   ("ABORTED") or ``/simulation_running`` false ("STOPPED"): publishes END ``[-1,10,999]``,
-  writes info.csv and ``<prefix>_run.yaml`` (:mod:`patrolling_sim.run_status`) and exits 0.
+  writes info.csv and ``<prefix>_run.yaml`` (:mod:`patrolling_sim.monitor.run_status`) and exits 0.
   Stopped from outside before its own end (SIGINT, ``rosnode kill``, roslaunch shutting
   down) it writes them too, with status "INTERRUPTED": the metrics cover a truncated run.
   The experiment runner then records the real cause (a signal, a crashed node).
@@ -20,7 +20,7 @@ by :class:`patrolling_sim.results.ResultWriter`; this module is the ROS glue:
   the same clock; ``[id,13,0]`` / ``[id,13,1]`` record a robot's failure / repair (a failed
   robot is exempt from the dead-robot rule, idleness is still measured over every vertex);
   with a communication model or failures configured it writes ``<prefix>_scenario.yaml``
-  (:mod:`patrolling_sim.scenario`) with the agents' message counters
+  (:mod:`patrolling_sim.scenarios.scenario`) with the agents' message counters
   (``/scenario_counters/robot_<i>``).
 """
 import math
@@ -33,14 +33,14 @@ import rospy
 from std_msgs.msg import Int16MultiArray
 from visualization_msgs.msg import MarkerArray
 
-from .. import paths
-from ..errors import PatrolInputError
-from ..graph import PatrolGraph, load_graph
-from ..monitor_core import MonitorCore
-from .. import run_status as rs
-from ..results import ResultWriter, RunInfo, default_prefix, timestamp
-from .. import scenario
-from . import markers
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.model.graph import PatrolGraph, load_graph
+from patrolling_sim.monitor.core import MonitorCore
+from patrolling_sim.monitor import run_status as rs
+from patrolling_sim.monitor.results import ResultWriter, RunInfo, default_prefix, timestamp
+from patrolling_sim.scenarios import scenario
+from patrolling_sim.ros import markers
 
 MONITOR_ID = -1
 MSG_INIT, MSG_TARGET_REACHED, MSG_INTERFERENCE, MSG_FAILURE = 10, 11, 12, 13

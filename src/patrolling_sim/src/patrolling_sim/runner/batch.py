@@ -27,9 +27,11 @@ import subprocess
 import sys
 import time
 
-from ..errors import PatrolInputError
-from ..textfile import read_yaml
-from .config import ExperimentConfig
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.common.textfile import read_yaml
+from patrolling_sim.runner.config import ExperimentConfig
+import shutil
+import tempfile
 
 
 def load_batch(path, base=None):
@@ -138,8 +140,6 @@ def run_batch(configs, parallel, argv0, out=print, hold=None):
     (each with its own ROS master). Returns the list of (config, exit code, result line).
     ``hold``: the :class:`SignalHold` the caller's signal handler consults (a run's start,
     from its log file to its entry in the running table, is not cut by a signal)."""
-    import shutil
-    import tempfile
     hold = hold or SignalHold()
     pending = list(enumerate(configs))
     running = {}

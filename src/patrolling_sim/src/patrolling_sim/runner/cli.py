@@ -12,7 +12,7 @@ Forms::
 
 Everything is validated before anything starts; errors are one line and exit status 2.
 A run exits 0 when it ended normally (TIMEOUT, CYCLES, STOPPED), 1 on FAIL or ABORTED, 3
-when a node crashed, 130 on SIGINT, 143 on SIGTERM (patrolling_sim.run_status); the status
+when a node crashed, 130 on SIGINT, 143 on SIGTERM (patrolling_sim.monitor.run_status); the status
 is recorded in info.csv and ``<prefix>_run.yaml``. With ``--batch``, flags given on the
 command line override every entry of the batch; a batch exits 0 only if every run did.
 """
@@ -20,10 +20,14 @@ import os
 import signal
 import sys
 
-from ..cli import CliParser, run_main, setup_logging
-from ..errors import PatrolInputError
-from .batch import BatchInterrupted, SignalHold, load_batch, print_batch_table, run_batch
-from .config import ExperimentConfig, from_positional, load_config_file
+from patrolling_sim.common.cli import CliParser, run_main, setup_logging
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.runner.batch import BatchInterrupted, SignalHold, load_batch, print_batch_table, run_batch
+from patrolling_sim.runner.config import ExperimentConfig, from_positional, load_config_file
+from patrolling_sim.runner.gui import run_gui
+from patrolling_sim.runner.supervisor import Experiment
+from patrolling_sim.runner.supervisor import read_info
+from patrolling_sim.scenarios.scenario import read_scenario
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
              "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes",
@@ -115,7 +119,6 @@ def safe_print(*args, **kw):
 
 def run_one(cfg, out=safe_print):
     """Run one validated experiment in this process; returns its Outcome."""
-    from .supervisor import Experiment
     exp = Experiment(cfg, out=out)
 
     # SIGINT / SIGTERM only set a flag that the supervisor checks several times a second,
@@ -134,7 +137,7 @@ def run_one(cfg, out=safe_print):
         signal.signal(signal.SIGINT, signal.default_int_handler)
     if cfg.record and getattr(exp, "snapshot_dir", None):
         try:
-            from .video import assemble_video
+            from patrolling_sim.runner.video import assemble_video
             video = assemble_video(exp.snapshot_dir, exp.prefix + "_run.mp4")
             if video:
                 out(f"video: {video}")
@@ -144,7 +147,6 @@ def run_one(cfg, out=safe_print):
 
 
 def print_summary(outcome, out=safe_print):
-    from .supervisor import read_info
     info = read_info(outcome.prefix)
     rec = outcome.record or {}
     pace = f", pace {rec['pace']:.2f}x" if rec.get("pace") else ""
@@ -171,7 +173,6 @@ def print_summary(outcome, out=safe_print):
 def scenario_summary(prefix):
     """One line on the run's scenario from ``<prefix>_scenario.yaml`` (None without one):
     the model, each failure (s after GO) and the messages the receivers judged."""
-    from ..scenario import read_scenario
     try:
         doc = read_scenario(prefix)
     except ValueError as e:
@@ -243,14 +244,12 @@ def main(argv):
         if not os.environ.get("DISPLAY"):
             raise PatrolInputError("no display for the GUI: give --headless with --map/--robots/"
                                    "--alg..., --config FILE, or the positional form")
-        from .gui import run_gui
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         return run_gui(os.path.abspath(sys.argv[0]),
                        load_config_file(args.config) if args.config else None)
     cfg = config_from_args(args).validate()
     if args.dry_run:
-        from .supervisor import Experiment
         exp = Experiment(cfg)
         prefix = exp.prepare()
         print(f"launch file: {exp.launch_path}")

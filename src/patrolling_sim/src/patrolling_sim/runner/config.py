@@ -9,7 +9,7 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     alg          algorithm short name (RAND, CR, HCR, HPCC, CGG, MSP, GBS, SEBS, CBLS,
                  DTAG, DTAP, or any registered strategy)             required
     initpos      "default", a lettered variant of params/initial_poses.txt ("a", "b", ...) or
-                 "optimised" (start vertices chosen for the algorithm, patrolling_sim.startpos)
+                 "optimised" (start vertices chosen for the algorithm, patrolling_sim.startpos.optimised)
     loc          AMCL | fake_localization                            (AMCL)
     nav          spqrel_nav_lite | ros | abstract                    (spqrel_nav_lite)
                  abstract: no simulator and no navigation; one node moves the robots in
@@ -18,10 +18,10 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     gwait        goal_reached_wait, s >= 0                           (0)
     comm_delay   communication_delay, s >= 0                         (0)
     loss         lost_message_rate in [0, 1)                         (0)
-    comm         communication model of inter-robot messages (patrolling_sim.comm):
+    comm         communication model of inter-robot messages (patrolling_sim.scenarios.comm):
                  perfect | bernoulli:p=.. | ge:p_good=..,p_bad=..,to_bad=..,to_good=.. |
                  range:r=..,los=true|false, optionally ;delay=KIND:a[,b]      (perfect)
-    attrition    robot failures (patrolling_sim.attrition): none | "2@600,5@1200[+300]" |
+    attrition    robot failures (patrolling_sim.scenarios.attrition): none | "2@600,5@1200[+300]" |
                  random:rate=..,min_team=..[,repair=..] (seeded by seed)       (none)
                  see docs/scenarios.md
     timeout      sim seconds after GO; 0 = no timeout                (0)
@@ -57,36 +57,23 @@ from dataclasses import dataclass, field
 
 import yaml
 
-from .. import paths, validation
-from ..errors import PatrolInputError
+from patrolling_sim.common import paths
+from patrolling_sim.model import map_bundle
+from patrolling_sim.experiment import validation
+from patrolling_sim.experiment.validation import process_layout
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.algorithms import REGISTRY
+from patrolling_sim.model.graph import PatrolGraph
+from patrolling_sim.runner.rosenv import workspace_env
+from patrolling_sim.scenarios.scenario import check_scenario
+from patrolling_sim.startpos.initial_poses import load_initial_poses
+from patrolling_sim.startpos.resolve import start_positions
 
 log = logging.getLogger(__name__)
 
 LOC_MODES = ("AMCL", "fake_localization")
 NAV_MODES = ("spqrel_nav_lite", "ros", "abstract")
 NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lite"}
-PROCESS_MODES = ("shared", "separate", "pooled", "pooled-separate")
-
-
-def process_layout(processes, robots):
-    """(agents, nav, hosts) of a ``--processes`` value: agents ``shared`` (one patrol_agents)
-    or ``separate`` (patrol_agent per robot); nav ``robot_nav`` (one per robot), ``separate``
-    (amcl/fake_localization + move_base per robot) or ``pooled`` (``hosts`` nav_host
-    processes). Raises PatrolInputError with one line when the value is bad."""
-    mode, sep, k = str(processes).partition(":")
-    if mode not in PROCESS_MODES or (sep and not mode.startswith("pooled")):
-        raise PatrolInputError(f"argument --processes: must be one of shared, separate, "
-                               f"pooled[:K], pooled-separate[:K], got '{processes}'")
-    if not mode.startswith("pooled"):
-        return mode, ("robot_nav" if mode == "shared" else "separate"), 0
-    if sep:
-        if not k.isdigit() or not 1 <= int(k) <= max(1, robots):
-            raise PatrolInputError(f"argument --processes: K in '{processes}' must be an "
-                                   f"integer from 1 to the number of robots ({robots})")
-        hosts = int(k)
-    else:
-        hosts = 1 if robots <= 8 else 2
-    return ("shared" if mode == "pooled" else "separate"), "pooled", min(hosts, robots)
 
 
 def default_results_dir():
@@ -162,7 +149,6 @@ class ExperimentConfig:
             raise PatrolInputError(f"argument --robots: team size must be >= 1, got {self.robots}")
         if not self.alg:
             raise PatrolInputError("argument --alg: an algorithm is required")
-        from ..algorithms import REGISTRY
         if self.alg not in REGISTRY:
             raise PatrolInputError(f"argument --alg: unknown algorithm '{self.alg}' (known: "
                                    f"{', '.join(sorted(REGISTRY))})")
@@ -205,7 +191,7 @@ class ExperimentConfig:
         bundle = None
         if check_start_positions:
             # the map and its graph, read once: start poses, team size and memory estimate
-            bundle = paths.load_map_bundle(self.map)
+            bundle = map_bundle.load_map_bundle(self.map)
             self.start_positions(bundle)    # one-line error when they cannot be placed
             warning = validation.team_size_warning(self.robots, bundle[1].number_of_nodes(),
                                                    self.map_name)
@@ -222,7 +208,6 @@ class ExperimentConfig:
         if check_writable:
             check_writable_dir(self.results_dir, "argument --results-dir")
         if self.nav == "ros":
-            from .rosenv import workspace_env
             try:
                 env = workspace_env()
             except PatrolInputError:
@@ -235,7 +220,6 @@ class ExperimentConfig:
         ``attrition`` (the random attrition model is drawn from ``seed`` over ``timeout``).
 
         Raises PatrolInputError (one line naming --comm or --attrition)."""
-        from ..scenario import check_scenario
         self.comm = str(self.comm or "perfect").strip() or "perfect"
         self.attrition = str(self.attrition or "none").strip() or "none"
         return check_scenario(self.comm, self.attrition, self.robots or 0,
@@ -246,10 +230,8 @@ class ExperimentConfig:
     def start_positions(self, bundle=None):
         """[(x, y)] for the team (table entry or computed); validates the team size.
         ``bundle``: the map's (OccupancyMap, graph) if already loaded
-        (:func:`patrolling_sim.paths.load_map_bundle`)."""
-        from ..graph import PatrolGraph
-        from ..initial_poses import load_initial_poses, start_positions
-        occ, G = bundle or paths.load_map_bundle(self.map)
+        (:func:`patrolling_sim.common.map_bundle.load_map_bundle`)."""
+        occ, G = bundle or map_bundle.load_map_bundle(self.map)
         table_path = paths.initial_poses_file()
         pos, _ = start_positions(paths.map_name(self.map), self.robots, PatrolGraph(G), occ,
                                  self.initpos, load_initial_poses(table_path), table_path,
@@ -263,7 +245,7 @@ class ExperimentConfig:
     @property
     def result_name(self):
         """Name the results are filed under (a user map gets a content hash, see
-        :func:`patrolling_sim.validation.result_map_name`)."""
+        :func:`patrolling_sim.experiment.validation.result_map_name`)."""
         return validation.result_map_name(self.map)
 
 

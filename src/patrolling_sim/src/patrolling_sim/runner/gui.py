@@ -17,9 +17,10 @@ import sys
 import tempfile
 import threading
 
-from .. import paths
-from ..errors import PatrolInputError
-from .config import LOC_MODES, NAV_MODES, ExperimentConfig, load_config_file
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.runner.config import LOC_MODES, NAV_MODES, ExperimentConfig, load_config_file
+from patrolling_sim.algorithms import REGISTRY
 
 POLL_MS = 100
 PROGRESS_RE = re.compile(r"progress: sim ([\d.]+) s \| go (\w+) \| cycles (\d+) \| "
@@ -53,7 +54,6 @@ class LauncherApp:
     def __init__(self, root, script, initial=None):
         import tkinter as tk
         from tkinter import ttk
-        from ..algorithms import REGISTRY
         self.root = root
         self.script = script
         self.proc = None

@@ -31,10 +31,10 @@ from xml.sax.saxutils import quoteattr
 
 from spqrel_nav_lite import plan_store
 
-from .. import paths
-from ..agent_core import agent_seed
-from ..graph import load_graph
-from .config import process_layout
+from patrolling_sim.common import paths
+from patrolling_sim.agent.core import agent_seed
+from patrolling_sim.model.graph import load_graph
+from patrolling_sim.experiment.validation import process_layout
 
 
 #: ``nav`` value of the abstract world: no simulator, map server, localisation or move_base;

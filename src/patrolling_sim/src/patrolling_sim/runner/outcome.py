@@ -6,8 +6,8 @@ a node's death, its own abort reason) and what the monitor wrote (info.csv,
 import os
 from dataclasses import dataclass, field
 
-from .. import run_status as rs
-from .roslaunch_log import describe_node, is_monitor
+from patrolling_sim.monitor import run_status as rs
+from patrolling_sim.runner.roslaunch_log import describe_node, is_monitor
 
 RESULT_SUFFIXES = ("idleness.csv", "timeresults.csv", "results.txt", "info.csv")
 

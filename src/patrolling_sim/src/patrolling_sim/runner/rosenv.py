@@ -8,8 +8,8 @@ import os
 import socket
 import subprocess
 
-from .. import paths
-from ..errors import PatrolInputError
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import PatrolInputError
 
 
 @functools.lru_cache(maxsize=1)

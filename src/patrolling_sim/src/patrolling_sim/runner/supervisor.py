@@ -21,10 +21,10 @@ Sequence of :meth:`Experiment.run`:
    when the wall-clock limit is exceeded (``ABORTED``): it sends SIGINT to roslaunch, which
    stops the nodes in order (the monitor writes its files on SIGINT);
 6. stops any survivor of its own process tree (never anything else), records the status in
-   info.csv's termination field and in ``<prefix>_run.yaml`` (:mod:`patrolling_sim.run_status`)
+   info.csv's termination field and in ``<prefix>_run.yaml`` (:mod:`patrolling_sim.monitor.run_status`)
    and returns an :class:`Outcome`.
 
-Exit codes (:func:`patrolling_sim.run_status.exit_code_for`): 0 normal end (TIMEOUT,
+Exit codes (:func:`patrolling_sim.monitor.run_status.exit_code_for`): 0 normal end (TIMEOUT,
 CYCLES, STOPPED), 1 FAIL or ABORTED, 3 CRASHED, 130 SIGINT, 143 SIGTERM.
 """
 import os
@@ -34,16 +34,18 @@ import threading
 import time
 from dataclasses import dataclass
 
-from .. import run_status as rs
-from ..results import claim_prefix as _claim, default_prefix
-from ..run_status import NORMAL_ENDS  # noqa: F401 - re-exported (GUI, tests)
-from .launchgen import generate_launch, status_topic
-from .outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,  # noqa: F401
+from patrolling_sim.monitor import run_status as rs
+from patrolling_sim.monitor.results import claim_prefix as _claim, default_prefix
+from patrolling_sim.monitor.run_status import NORMAL_ENDS  # noqa: F401 - re-exported (GUI, tests)
+from patrolling_sim.runner.launchgen import generate_launch, status_topic
+from patrolling_sim.runner.outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,  # noqa: F401
                       missing_files, read_info, signal_name, summary, timing)
-from .proctree import ProcessTree
-from .roslaunch_log import RoslaunchLog, describe_node, is_monitor  # noqa: F401 - re-exported
-from .rosenv import experiment_env, free_port
-from .watch import RosWatcher, master_up, progress_line, read_progress  # noqa: F401
+from patrolling_sim.runner.proctree import ProcessTree
+from patrolling_sim.runner.roslaunch_log import RoslaunchLog, describe_node, is_monitor  # noqa: F401 - re-exported
+from patrolling_sim.runner.rosenv import experiment_env, free_port
+from patrolling_sim.runner.watch import RosWatcher, master_up, progress_line, read_progress  # noqa: F401
+from patrolling_sim.report.rviz_config import experiment_config_text
+from patrolling_sim.startpos.optimised import write_start_poses
 
 
 def _terminate_with_parent(parent_pid):
@@ -127,7 +129,6 @@ class Experiment:
         cfg = self.cfg
         positions = cfg.start_positions()
         self.prefix = claim_prefix(cfg)
-        from ..startpos import write_start_poses
         write_start_poses(self.prefix + "_start_poses.txt", positions, cfg.map,
                           f"--initpos {cfg.initpos}")
         self.log_dir = self.prefix + "_logs"
@@ -140,7 +141,6 @@ class Experiment:
         rviz_config = None
         if cfg.rviz:
             # an rviz view of exactly this team, centred on this map, kept with the results
-            from ..report.rviz_config import experiment_config_text
             rviz_config = self.prefix + "_patrol.rviz"
             with open(rviz_config, "w", encoding="utf-8") as f:
                 f.write(experiment_config_text(cfg.robots, cfg.map))

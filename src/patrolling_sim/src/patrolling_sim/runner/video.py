@@ -6,7 +6,7 @@ frame rate is chosen so that the video lasts about 20 s (between 2 and 25 frames
 import glob
 import os
 
-from ..errors import PatrolInputError
+from patrolling_sim.common.errors import PatrolInputError
 
 
 def assemble_video(snapshot_dir, out_path, fps=None):

@@ -5,7 +5,8 @@ import os
 import time
 import xmlrpc.client
 
-from ..protocol import END, GO, MONITOR_ID, MSG_INIT, MSG_TARGET_REACHED
+from patrolling_sim.common.protocol import END, GO, MONITOR_ID, MSG_INIT, MSG_TARGET_REACHED
+import json
 
 
 def master_up(uri, timeout, stop=lambda: False):
@@ -87,7 +88,6 @@ class RosWatcher:
         rospy.Subscriber("/results", Int16MultiArray, self._results, queue_size=100)
 
     def _status(self, msg):
-        import json
         try:
             st = json.loads(msg.data)
             self.sim_time = float(st["sim_time"])

@@ -1,0 +1,212 @@
+"""Campaign files: reading and validating a campaign (YAML grid), the run specs and their
+stable keys. Part of :mod:`patrolling_sim.campaign.engine` (see its docstring and docs/campaigns.md)."""
+import dataclasses
+import hashlib
+import itertools
+import json
+import os
+import subprocess
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional
+
+import yaml
+
+from patrolling_sim.campaign.run_warnings import RunWarnings
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.algorithms import names
+from patrolling_sim.graphsim.simulator import GraphSimConfig
+from patrolling_sim.runner.config import ExperimentConfig
+
+MODES = ("graph", "ros")
+#: statuses of a run that ended normally: skipped when the campaign is run again
+DONE_STATUSES = ("TIMEOUT", "CYCLES", "FAIL")
+#: statuses redone only with ``retry_failed``
+FAILED_STATUSES = ("CRASHED", "ERROR")
+TOP_KEYS = ("name", "mode", "fixed", "grid", "seeds")
+#: configuration keys a campaign may not set (the campaign decides them)
+RESERVED = {"graph": ("results_dir",),
+            "ros": ("results_dir", "rviz", "gui_sim", "record", "record_period")}
+STATE_DIR = "state"
+RESULTS_DIR = "results"
+
+
+@dataclass
+class RunSpec:
+    key: str
+    mode: str
+    config: Dict[str, object]
+
+    def label(self):
+        c = self.config
+        return f"{c.get('map')}_{c.get('robots')} {c.get('alg')} seed {c.get('seed')}"
+
+
+@dataclass
+class Campaign:
+    name: str
+    mode: str
+    path: str
+    runs: List[RunSpec]
+    raw: dict
+    code: Dict[str, object]
+    #: the warnings validating the runs gave, each once: "<message> (in N of the M runs)"
+    warnings: List[str] = field(default_factory=list)
+
+
+# ----------------------------------------------------------------------------- configuration
+def _config_class(mode):
+    if mode == "graph":
+        return GraphSimConfig
+    return ExperimentConfig
+
+
+def config_fields(mode) -> Dict[str, dataclasses.Field]:
+    """Configuration keys of ``mode`` a campaign may set -> dataclass field."""
+    return {f.name: f for f in dataclasses.fields(_config_class(mode))
+            if f.name not in RESERVED[mode]}
+
+
+def _default(f):
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return None
+
+
+def _check_type(where, key, value, f):
+    """One-line error unless ``value`` fits field ``f`` (by its default's type)."""
+    proto = _default(f)
+    ok = True
+    if key in ("map", "alg", "initpos") or isinstance(proto, str):
+        ok = isinstance(value, str) or (key == "initpos" and isinstance(value, int))
+        want = "a string"
+    elif isinstance(proto, bool):
+        ok, want = isinstance(value, bool), "true or false"
+    elif isinstance(proto, int) or key in ("robots", "seed", "cycles"):
+        ok, want = isinstance(value, int) and not isinstance(value, bool), "an integer"
+    elif isinstance(proto, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        want = "a number"
+    elif isinstance(proto, dict):
+        ok, want = isinstance(value, dict), "a mapping"
+    if not ok:
+        raise PatrolInputError(f"{where}.{key}: expected {want}, got {value!r}")
+
+
+def code_version(root: Optional[str] = None) -> Dict[str, object]:
+    """``{"commit": sha or "unknown", "dirty": bool or None}`` of the workspace."""
+    root = root or paths.data_root()
+    try:
+        commit = subprocess.run(["git", "-C", root, "rev-parse", "HEAD"], capture_output=True,
+                                text=True, timeout=10, check=True).stdout.strip()
+        status = subprocess.run(["git", "-C", root, "status", "--porcelain", "--", "src",
+                                 "scripts", "maps", "params", "MSP"], capture_output=True,
+                                text=True, timeout=10, check=True).stdout
+        return {"commit": commit, "dirty": bool(status.strip())}
+    except (OSError, subprocess.SubprocessError):
+        return {"commit": "unknown", "dirty": None}
+
+
+def run_key(mode: str, config: dict, commit: str) -> str:
+    blob = json.dumps({"mode": mode, "config": config, "code": commit}, sort_keys=True,
+                      default=str)
+    return hashlib.sha1(blob.encode()).hexdigest()[:16]
+
+
+def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campaign:
+    """Read and validate a campaign file; every run is validated.
+
+    Raises:
+        PatrolInputError: one line naming the file and the key that is wrong.
+    """
+    try:
+        with open(path) as f:
+            raw = yaml.safe_load(f)
+    except OSError as e:
+        raise PatrolInputError(f"{path}: cannot read the campaign file ({e.strerror})")
+    except yaml.YAMLError as e:
+        line = getattr(getattr(e, "problem_mark", None), "line", None)
+        raise PatrolInputError(f"{path}: not valid YAML" +
+                               (f" (line {line + 1})" if line is not None else ""))
+    if not isinstance(raw, dict):
+        raise PatrolInputError(f"{path}: expected a mapping with the keys {', '.join(TOP_KEYS)}")
+    for k in raw:
+        if k not in TOP_KEYS:
+            raise PatrolInputError(f"{path}: unknown key '{k}' (known: {', '.join(TOP_KEYS)})")
+    mode = raw.get("mode", "graph")
+    if mode not in MODES:
+        raise PatrolInputError(f"{path}: mode: expected one of {', '.join(MODES)}, got {mode!r}")
+    fields = config_fields(mode)
+    fixed = raw.get("fixed") or {}
+    grid = raw.get("grid") or {}
+    for where, d in (("fixed", fixed), ("grid", grid)):
+        if not isinstance(d, dict):
+            raise PatrolInputError(f"{path}: {where}: expected a mapping of configuration keys")
+        for k in d:
+            if k not in fields:
+                raise PatrolInputError(f"{path}: {where}.{k}: unknown configuration key for mode "
+                                       f"{mode} (known: {', '.join(sorted(fields))})")
+    if "seeds" in raw:
+        n = raw["seeds"]
+        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+            raise PatrolInputError(f"{path}: seeds: expected an integer >= 1, got {n!r}")
+        if "seed" in grid:
+            raise PatrolInputError(f"{path}: seeds: give either seeds or grid.seed, not both")
+        grid = dict(grid, seed=list(range(n)))
+    grid = dict(grid)
+    for k in ("map", "alg"):                   # "all": every shipped map / registered algorithm
+        if grid.get(k) == "all":
+            if k == "map":
+                grid[k] = paths.available_maps()
+            else:
+                grid[k] = names()
+    for k, values in grid.items():
+        if not isinstance(values, list):
+            raise PatrolInputError(f"{path}: grid.{k}: expected a list of values")
+        if not values:
+            raise PatrolInputError(f"{path}: grid.{k}: empty list (no run would be made)")
+        for v in values:
+            _check_type(f"{path}: grid", k, v, fields[k])
+    for k, v in fixed.items():
+        _check_type(f"{path}: fixed", k, v, fields[k])
+    for k in set(fixed) & set(grid):
+        raise PatrolInputError(f"{path}: {k}: set both in fixed and in grid")
+    for where, values in (("fixed", [fixed["map"]] if "map" in fixed else []),
+                          ("grid", grid.get("map", []))):
+        for m in values:
+            try:
+                yaml_path, graph_path = paths.map_files(m)
+            except PatrolInputError as e:
+                raise PatrolInputError(f"{path}: {where}.map: {e}")
+            if not os.path.isfile(graph_path):
+                raise PatrolInputError(f"{path}: {where}.map: no graph file {graph_path}")
+    code = code or code_version()
+    cls = _config_class(mode)
+    keys = list(grid)
+    runs = []
+    # the warnings validation logs are counted, not printed once per run: a campaign of a
+    # thousand runs would print each a thousand times
+    with RunWarnings() as warned:
+        for combo in itertools.product(*(grid[k] for k in keys)):
+            cfg = {n: _default(f) for n, f in fields.items()}
+            cfg.update(fixed)
+            cfg.update(zip(keys, combo))
+            where = ", ".join(f"{k}={v}" for k, v in zip(keys, combo)) or "the fixed settings"
+            try:
+                obj = cls(**cfg)
+                obj.validate()
+            except (PatrolInputError, TypeError, ValueError) as e:
+                raise PatrolInputError(f"{path}: run with {where}: {e}")
+            runs.append(RunSpec(run_key(mode, cfg, str(code["commit"])), mode, cfg))
+    if not runs:
+        raise PatrolInputError(f"{path}: no run (give grid values or fixed settings)")
+    if len({r.key for r in runs}) != len(runs):
+        raise PatrolInputError(f"{path}: the grid repeats a run (same configuration twice)")
+    name = raw.get("name") or os.path.splitext(os.path.basename(path))[0]
+    n = len(runs)
+    return Campaign(str(name), mode, os.path.abspath(path), runs, raw, code,
+                    warnings=[msg + (f" (in {k} of the {n} runs)" if n > 1 else "")
+                              for msg, k in warned.counts.items()])
+

@@ -1,0 +1,74 @@
+"""Inputs of a graph-mode run (:mod:`patrolling_sim.graphsim.simulator`) and the world's constants
+(``docs/protocol.md``, "Graph mode"; scenarios: ``docs/scenarios.md``)."""
+import math
+from dataclasses import dataclass, field
+
+from patrolling_sim.experiment import validation
+from patrolling_sim.algorithms import REGISTRY
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.scenarios.scenario import check_scenario
+
+TIMERESULTS_PERIOD = 900.0
+#: shortest trip (s): a goal on the robot's own vertex still takes one navigation cycle, so
+#: simulated time always advances between two decisions of a robot
+MIN_TRIP = 0.5
+#: s between two navigation feedbacks (positions published, interference evaluated): the
+#: move_base controller's 5 Hz
+FEEDBACK_PERIOD = 0.2
+TRAVEL_MODES = ("graph", "euclidean")
+#: wall s between two flushes of the result rows (results.ResultWriter): the run's
+#: ``finally`` closes the files on any ending but SIGKILL
+WRITE_FLUSH_EVERY = 1.0
+
+
+
+@dataclass
+class GraphSimConfig:
+    """Inputs of one graph-mode run (defaults as the ROS runner's)."""
+    map: str = "grid"
+    robots: int = 1
+    alg: str = "CR"
+    duration: float = 3600.0        # sim seconds after GO; 0 = until `cycles`
+    cycles: int = 0                 # stop after this many complete patrol cycles; 0 = off
+    seed: int = 0
+    speed: float = 1.0              # m/s along graph edges (or straight lines)
+    gwait: float = 0.0
+    comm_delay: float = 0.0
+    loss: float = 0.0
+    initpos: str = "default"
+    results_dir: str = "results"
+    params: dict = field(default_factory=dict)
+    goal_fail: float = 0.0          # probability that a navigation goal fails on the way
+    interference: bool = True       # robots within 2 m interfere (the original's rule)
+    travel: str = "graph"           # "graph": shortest graph path; "euclidean": straight line
+    comm: str = "perfect"           # communication model (patrolling_sim.scenarios.comm, --comm)
+    attrition: str = "none"         # robot failures (patrolling_sim.scenarios.attrition, --attrition)
+
+    def validate(self):
+        if self.alg not in REGISTRY:
+            raise PatrolInputError(f"argument --alg: unknown algorithm '{self.alg}' (known: "
+                                   f"{', '.join(sorted(REGISTRY))})")
+        if self.robots < 1:
+            raise PatrolInputError(f"argument --robots: team size must be >= 1, got {self.robots}")
+        if self.duration < 0 or (self.duration == 0 and self.cycles <= 0):
+            raise PatrolInputError("argument --duration: must be > 0 (or give --cycles)")
+        if self.cycles < 0:
+            raise PatrolInputError(f"argument --cycles: must be >= 0, got {self.cycles}")
+        if self.speed <= 0:
+            raise PatrolInputError(f"argument --speed: must be > 0, got {self.speed}")
+        if self.gwait < 0:
+            raise PatrolInputError(f"argument --gwait: must be >= 0, got {self.gwait}")
+        if self.comm_delay < 0:
+            raise PatrolInputError(f"argument --comm-delay: must be >= 0, got {self.comm_delay}")
+        if not 0 <= self.loss < 1:
+            raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
+        if not 0 <= self.goal_fail < 1:
+            raise PatrolInputError(f"argument --goal-fail: must be in [0, 1), got {self.goal_fail}")
+        if self.travel not in TRAVEL_MODES:
+            raise PatrolInputError(f"argument --travel: must be one of {', '.join(TRAVEL_MODES)}"
+                                   f", got '{self.travel}'")
+        # the same one-line errors as the experiment runner (patrolling_sim.experiment.validation)
+        validation.check_map_files(self.map)
+        check_scenario(self.comm, self.attrition, self.robots,
+                       self.duration if self.duration > 0 else math.inf, self.seed)
+        return self

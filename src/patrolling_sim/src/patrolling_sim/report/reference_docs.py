@@ -1,0 +1,316 @@
+"""Reference tables: Markdown pages and figures of a campaign's ``runs.csv`` (docs/reference/).
+
+:func:`build_reference_docs` reads a campaign folder (``runs.csv``, and ``provenance.yaml``
+if present, see ``docs/campaigns.md``) and returns the pages in memory; :func:`write_docs`
+writes them. For every map: per team size, one table algorithm x metrics (mean ± SD over the
+seeds of the runs that ended with ``TIMEOUT``, with their count), the theoretical references
+of :mod:`patrolling_sim.planning.references` (best closed tour, cyclic ``L/(k v)``, partition), and one
+figure (idleness vs team size per algorithm, the references as lines). Runs not done yet are
+counted (the pages say PARTIAL); runs that ended otherwise (CYCLES, FAIL, CRASHED, ERROR ...)
+are excluded from the means and counted per cell, never mixed in. The metric definitions are
+those of ``docs/metrics.md``.
+"""
+import datetime
+import io
+import os
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional
+
+import yaml
+
+from patrolling_sim.common import paths
+from patrolling_sim.common.errors import PatrolInputError
+import shlex
+import sys
+from patrolling_sim.common.cli import CliParser
+from patrolling_sim.common.cli import run_main
+from patrolling_sim.model.graph import PatrolGraph
+from patrolling_sim.model.graph import load_graph
+from patrolling_sim.planning.references import references
+
+#: (runs.csv column, heading, decimals): the columns of every table
+METRICS = (("idl_avg", "avg idleness (original) [s]", 1),
+           ("time_avg_idleness", "time-avg idleness [s]", 1),
+           ("worst_idleness", "worst idleness [s]", 1),
+           ("idl_max", "max idleness (original) [s]", 1),
+           ("total_visits", "visits", 0))
+#: the only status averaged: a run that patrolled for the whole duration
+USED_STATUS = "TIMEOUT"
+NOT_RUN = "NOT_RUN"
+CELL = ["map", "robots", "alg"]
+REQUIRED = ("map", "robots", "alg", "seed", "status")
+#: runs.csv columns that are not configuration (the rest must be constant within a cell)
+_NOT_CONFIG = {"key", "mode", "map", "robots", "alg", "seed"}
+
+
+@dataclass
+class ReferenceDocs:
+    """The generated pages: file name -> text (``.md``) or bytes (``.png``)."""
+    files: Dict[str, object] = field(default_factory=dict)
+    total: int = 0
+    done: int = 0
+    excluded: int = 0
+
+    @property
+    def partial(self):
+        return self.done + self.excluded < self.total
+
+
+def load_runs(campaign_dir: str):
+    """``runs.csv`` of ``campaign_dir`` as a DataFrame, checked.
+
+    Raises:
+        PatrolInputError: one line naming the folder or file and what is wrong.
+    """
+    import pandas as pd
+    if not os.path.isdir(campaign_dir):
+        raise PatrolInputError(f"{campaign_dir}: no such campaign folder")
+    path = os.path.join(campaign_dir, "runs.csv")
+    if not os.path.isfile(path):
+        raise PatrolInputError(f"{path}: no runs.csv (run scripts/campaign.py on the folder "
+                               "first)")
+    try:
+        df = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        raise PatrolInputError(f"{path}: malformed csv ({str(e).splitlines()[0]})")
+    missing = [c for c in REQUIRED if c not in df.columns]
+    if missing:
+        raise PatrolInputError(f"{path}: missing column(s) {', '.join(missing)}")
+    if df.empty:
+        raise PatrolInputError(f"{path}: no runs")
+    for c in ("robots", "seed"):
+        v = pd.to_numeric(df[c], errors="coerce")
+        if v.isna().any() or (v != v.round()).any():
+            raise PatrolInputError(f"{path}: column {c}: expected integers, got "
+                                   f"{df[c][v.isna() | (v != v.round())].iloc[0]!r}")
+        df[c] = v.astype(int)
+    if df[["map", "alg", "status"]].isna().any().any():
+        raise PatrolInputError(f"{path}: empty map, alg or status field")
+    if df.duplicated(CELL + ["seed"]).any():
+        row = df[df.duplicated(CELL + ["seed"])].iloc[0]
+        raise PatrolInputError(f"{path}: run {row['map']}_{row['robots']} {row['alg']} seed "
+                               f"{row['seed']} appears twice (the table mixes settings)")
+    used = df["status"] == USED_STATUS
+    for c, _, _ in METRICS:
+        if used.any() and c not in df.columns:
+            raise PatrolInputError(f"{path}: missing metric column {c}")
+        if c in df.columns:
+            # empty is allowed (a run without any visit has no idleness), text is not
+            raw = df.loc[used, c]
+            v = pd.to_numeric(raw, errors="coerce")
+            if (v.isna() & raw.notna()).any():
+                raise PatrolInputError(f"{path}: column {c}: a {USED_STATUS} run has a "
+                                       f"non-numeric value {raw[v.isna() & raw.notna()].iloc[0]!r}")
+            df[c] = pd.to_numeric(df[c], errors="coerce")
+    status_at = list(df.columns).index("status")
+    for c in list(df.columns)[:status_at]:
+        if c in _NOT_CONFIG:
+            continue
+        if df.groupby(CELL)[c].nunique(dropna=False).max() > 1:
+            raise PatrolInputError(f"{path}: column {c} varies within a map/robots/alg cell; "
+                                   "the reference tables need one setting per cell")
+    for m in df["map"].unique():
+        try:
+            paths.map_files(str(m))
+        except PatrolInputError as e:
+            raise PatrolInputError(f"{path}: map {m!r}: {e}")
+    return df
+
+
+def _fmt(mean, sd, dec):
+    if mean != mean:                           # NaN: no run
+        return "–"
+    s = f"{mean:.{dec}f}"
+    return s + (f" ± {sd:.{dec}f}" if sd == sd else "")
+
+
+def _map_references(map_name, sizes, speed):
+    g = PatrolGraph(load_graph(paths.map_files(map_name)[1], warn=False))
+    return {n: references(g, int(n), speed, map_name) for n in sizes}
+
+
+def _figure(map_name, stats, refs, algs):
+    """PNG bytes: avg idleness (original's) and worst idleness vs team size per algorithm,
+    the cyclic and partition references as lines."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import ScalarFormatter
+    import matplotlib
+    cmap = matplotlib.colormaps["tab20"]
+    fig = Figure(figsize=(12, 4.6))
+    FigureCanvasAgg(fig)
+    sizes = sorted(refs)
+    for ax, col, title in zip(fig.subplots(1, 2), ("idl_avg", "worst_idleness"),
+                              ("average idleness (original's)", "worst idleness")):
+        for i, a in enumerate(algs):           # 13+ algorithms: 20 colours, 5 markers
+            s = stats[stats["alg"] == a].sort_values("robots")
+            s = s[s["n"] > 0]
+            if len(s):
+                ax.errorbar(s["robots"], s[col + "_mean"], yerr=s[col + "_sd"].fillna(0),
+                            marker="os^vD"[i % 5], ms=3.5, capsize=2, lw=1,
+                            color=cmap(i % 20), label=a)
+        ax.plot(sizes, [refs[n].cyclic_idleness for n in sizes], "k--", lw=1.6,
+                label="cyclic L/(k v)")
+        if col == "worst_idleness":            # a bound on the worst idleness only
+            ax.plot(sizes, [refs[n].partition_idleness for n in sizes], "k:", lw=1.6,
+                    label="partition")
+        ax.set_xlabel("team size")
+        ax.set_ylabel("s")
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(ScalarFormatter())
+        ax.set_xticks(sizes)
+        ax.set_title(f"{map_name}: {title}")
+        ax.grid(alpha=0.3)
+    handles, labels = fig.axes[1].get_legend_handles_labels()
+    fig.tight_layout(rect=(0, 0, 0.86, 1))
+    fig.legend(handles, labels, fontsize=8, loc="center right")
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    return buf.getvalue()
+
+
+def _cell_stats(df, seeds):
+    """One row per (map, robots, alg): n used, n excluded, n not run, mean and SD per metric."""
+    import pandas as pd
+    rows = []
+    for (m, n, a), g in df.groupby(CELL, sort=True):
+        ok = g[g["status"] == USED_STATUS]
+        row = {"map": m, "robots": n, "alg": a, "n": len(ok),
+               "not_run": int((g["status"] == NOT_RUN).sum()),
+               "excluded": int(((g["status"] != USED_STATUS) & (g["status"] != NOT_RUN)).sum())}
+        # a run without any visit has no idleness: averaged over the runs that have one
+        row["novisit"] = int(ok["idl_avg"].isna().sum()) if "idl_avg" in ok else 0
+        for c, _, _ in METRICS:
+            v = ok[c].dropna() if c in ok else pd.Series(dtype=float)
+            row[c + "_mean"] = float(v.mean()) if len(v) else float("nan")
+            row[c + "_sd"] = float(v.std(ddof=1)) if len(v) > 1 else float("nan")
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _map_page(map_name, stats, refs, seeds, header):
+    lines = [f"# Reference tables: {map_name}", ""] + header + [
+        f"Mean ± SD over the seeds of the runs that ended with {USED_STATUS} (n of {seeds} "
+        "seeds; **n\\*** marks a cell with fewer seeds than the campaign's; *excl.* counts runs "
+        "that ended otherwise, left out; a run that made no visit at all has no idleness: its "
+        "cell says so and averages the others). Metric definitions: `docs/metrics.md`. References: "
+        "`patrolling_sim.planning.references` (`docs/metrics.md`), at the runs' speed, no goal wait: the "
+        "cyclic reference is the idleness of every visit of k robots evenly spaced on the best "
+        "closed tour (so it applies to the average, worst and max idleness; a reference, not a "
+        "bound: the original's average counts every visit, a route's repeated passes included), "
+        "the partition reference the worst idleness of one robot per part of a balanced "
+        "partition.", "",
+        f"![{map_name}]({map_name}.png)", ""]
+    for n in sorted(refs):
+        r = refs[n]
+        s = stats[stats["robots"] == n]
+        lines += [f"## {n} robot{'s' if n > 1 else ''}", "",
+                  "| algorithm | n | excl. | " + " | ".join(h for _, h, _ in METRICS) + " |",
+                  "|---|---|---|" + "---|" * len(METRICS)]
+        for _, row in s.iterrows():
+            mark = "\\*" if row["n"] < seeds else ""
+            if row["novisit"]:
+                mark += f" ({row['novisit']} without a visit)"
+            lines.append(f"| {row['alg']} | {row['n']}{mark} | {row['excluded']} | " + " | ".join(
+                _fmt(row[c + "_mean"], row[c + "_sd"], d) for c, _, d in METRICS) + " |")
+        cy, pa = f"{r.cyclic_idleness:.1f}", f"{r.partition_idleness:.1f}"
+        lines += [f"| *cyclic reference L/(k v)* | | | {cy} | | {cy} | {cy} | |",
+                  f"| *partition reference* | | | | | {pa} | {pa} | |", "",
+                  f"Best closed tour L = {r.tour_length:.1f} m "
+                  f"({'exact' if r.tour_exact else 'heuristic'}); cyclic L/(k v) = "
+                  f"{r.cyclic_idleness:.1f} s; partition (slowest part's tour / v, part sizes "
+                  f"{r.partition_sizes}) = {r.partition_idleness:.1f} s.", ""]
+    return "\n".join(lines)
+
+
+def _provenance(campaign_dir):
+    p = os.path.join(campaign_dir, "provenance.yaml")
+    try:
+        with open(p) as f:
+            d = yaml.safe_load(f)
+        return d if isinstance(d, dict) else {}
+    except (OSError, yaml.YAMLError):
+        return {}
+
+
+def build_reference_docs(campaign_dir: str, command: str,
+                         now: Optional[datetime.datetime] = None) -> ReferenceDocs:
+    """The pages of ``campaign_dir`` (nothing written). ``command``: the command line that
+    generated them, written at the top of the index."""
+    df = load_runs(campaign_dir)
+    prov = _provenance(campaign_dir)
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    seeds = int(df.groupby(CELL).size().max())
+    stats = _cell_stats(df, seeds)
+    docs = ReferenceDocs(total=len(df), done=int((df["status"] == USED_STATUS).sum()),
+                         excluded=int(((df["status"] != USED_STATUS)
+                                       & (df["status"] != NOT_RUN)).sum()))
+    code = prov.get("code") or {}
+    commit = str(code.get("commit", "unknown"))
+    dirty = " (dirty)" if code.get("dirty") else ""
+    counts = df["status"].value_counts().sort_index()
+    state = (f"**PARTIAL: {docs.done} of {docs.total} runs done** "
+             f"({docs.total - docs.done - docs.excluded} not run yet, {docs.excluded} excluded)"
+             if docs.partial else f"complete: {docs.done} of {docs.total} runs done"
+             + (f", {docs.excluded} excluded" if docs.excluded else ""))
+    header = [f"Generated by `{command}` on {now.strftime('%Y-%m-%d %H:%M UTC')} from the "
+              f"campaign `{prov.get('name', os.path.basename(os.path.abspath(campaign_dir)))}` "
+              f"(code commit `{commit[:12]}`{dirty}). {state}.", ""]
+    speed = float(df["speed"].iloc[0]) if "speed" in df else 1.0
+    maps = sorted(df["map"].astype(str).unique())
+    algs = sorted(df["alg"].astype(str).unique())
+    index = ["# Reference tables", "", "```bash", command, "```", "",
+             f"Generated on {now.strftime('%Y-%m-%d %H:%M UTC')}; campaign file "
+             f"`{os.path.basename(str(prov.get('file', 'campaign.yaml')))}`, code commit "
+             f"`{commit}`{dirty}; campaign run from {prov.get('start', '?')} to "
+             f"{prov.get('end', '?')} on `{prov.get('client_host', '?')}`.", "",
+             state + ".", "",
+             "Status counts: " + ", ".join(f"{k} {v}" for k, v in counts.items()) + ". Only "
+             f"runs that ended with {USED_STATUS} are averaged; the others are counted per "
+             "cell (*excl.*). Cells with fewer seeds than the campaign's "
+             f"{seeds} are marked n\\*.", "",
+             "| map | team sizes | algorithms | runs done | of |", "|---|---|---|---|---|"]
+    for m in maps:
+        sm = stats[stats["map"] == m]
+        sizes = sorted(int(x) for x in sm["robots"].unique())
+        tot = int((df["map"] == m).sum())
+        index.append(f"| [{m}]({m}.md) | {', '.join(map(str, sizes))} | "
+                     f"{sm['alg'].nunique()} | {int(sm['n'].sum())} | {tot} |")
+        refs = _map_references(m, sizes, speed)
+        docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header)
+        docs.files[f"{m}.png"] = _figure(m, sm, refs, algs)
+    docs.files["README.md"] = "\n".join(index) + "\n"
+    return docs
+
+
+def write_docs(docs: ReferenceDocs, out: str) -> List[str]:
+    """Write every page into ``out`` (created); each file replaced atomically."""
+    os.makedirs(out, exist_ok=True)
+    written = []
+    for name, content in sorted(docs.files.items()):
+        p = os.path.join(out, name)
+        tmp = p + ".part"
+        with open(tmp, "wb") as f:
+            f.write(content if isinstance(content, bytes) else content.encode())
+        os.replace(tmp, p)
+        written.append(p)
+    return written
+
+
+def main(argv=None):
+
+    def _main(args):
+        ap = CliParser(prog="reference_docs.py", description=(
+            "Write the reference tables (docs/reference/: one page and one figure per map, an "
+            "index) from a campaign folder's runs.csv (see docs/campaigns.md)."))
+        ap.add_argument("campaign_dir", help="campaign folder (holds runs.csv)")
+        ap.add_argument("--out", default=os.path.join("docs", "reference"),
+                        help="output folder (default: docs/reference)")
+        a = ap.parse_args(args)
+        command = shlex.join(["scripts/reference_docs.py"] + list(args))
+        docs = build_reference_docs(a.campaign_dir, command)
+        write_docs(docs, a.out)
+        print(f"reference_docs.py: {len(docs.files)} files in {a.out} ({docs.done} of "
+              f"{docs.total} runs done{', PARTIAL' if docs.partial else ''})")
+        return 0
+    return run_main(_main, "reference_docs.py", sys.argv[1:] if argv is None else argv)
