@@ -11,7 +11,7 @@ TIMEOUT ?= 300
 SPEEDUP ?= 5
 RESULTS ?= results
 
-.PHONY: setup build run test unit rostest clean
+.PHONY: setup build run test unit rostest lint docs clean
 
 ## setup: install the Debian packages (only if missing) and build the workspace
 setup:
@@ -41,6 +41,14 @@ unit:
 ## rostest: only the ROS integration tests
 rostest: setup
 	/usr/bin/python3 -m pytest -p no:cacheprovider tests/ros $(PYTEST_ARGS)
+
+## lint: flake8 (Debian's python3-flake8, config in .flake8) over every Python file
+lint:
+	/usr/bin/python3 -m flake8 src scripts bench tests $(wildcard src/*/nodes/*)
+
+## docs: the API reference from the docstrings (Sphinx; warnings are errors): build/docs/
+docs:
+	bash scripts/build_api_docs.sh
 
 clean:
 	rm -rf build devel install build.log

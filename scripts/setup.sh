@@ -26,6 +26,16 @@ else
   echo "setup: all ${#PKGS[@]} Debian packages already installed"
 fi
 
+# PyPI-only tools (scripts/requirements-tools.txt) in a venv over Debian's python3, so that
+# Debian's own python packages stay untouched; rebuilt when the requirements change
+VENV="$ROOT/.venv"
+if [[ ! -x "$VENV/bin/python" ]] || ! cmp -s scripts/requirements-tools.txt "$VENV/requirements-tools.txt"; then
+  echo "setup: installing the PyPI tools of scripts/requirements-tools.txt into .venv/"
+  /usr/bin/python3 -m venv --system-site-packages "$VENV"
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r scripts/requirements-tools.txt
+  cp scripts/requirements-tools.txt "$VENV/requirements-tools.txt"
+fi
+
 echo "setup: building the catkin workspace"
 catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release > build.log 2>&1 || {
   tail -n 40 build.log >&2; echo "setup: catkin_make failed (full log: $ROOT/build.log)" >&2; exit 1; }

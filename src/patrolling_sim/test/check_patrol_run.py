@@ -40,7 +40,7 @@ class TestPatrolRun(unittest.TestCase):
     def _watch_connections(cls):
         # until this node's /results subscriber is connected to every other publisher (the
         # n agents and the monitor) an announcement may be missed: the checker starts after
-        # the nodes, and under load it once connected after GO and saw none (ci18)
+        # the nodes, and under load it may connect only after GO
         while not rospy.is_shutdown() and cls.rec.first(U.GO) is None:
             try:
                 if cls.rec.connected_to_publishers(cls.n + 1):

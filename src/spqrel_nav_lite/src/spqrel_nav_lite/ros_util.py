@@ -1,9 +1,14 @@
 """Helpers shared by the ROS nodes (imports rospy; the other modules do not)."""
 import os
+import signal
 import sys
+import threading
 
 import numpy as np
 import rospy
+from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import OccupancyGrid
+from nav_msgs.srv import GetMap
 
 from .errors import InputError
 from .mapio import OccupancyMap, load_map
@@ -36,8 +41,6 @@ def init_node_signal_safe(name, **kwargs):
     event, and a daemon thread waiting on it calls ``signal_shutdown``: it then waits for
     the lock like any other thread. Unlike rospy's SIGINT handler, no KeyboardInterrupt is
     raised in the main thread: loops end on ``rospy.is_shutdown()``."""
-    import signal
-    import threading
     rospy.init_node(name, disable_signals=True, **kwargs)
     requested = threading.Event()
     received = []
@@ -119,7 +122,6 @@ def fill_pose(msg_pose, pose):
 
 
 def transform_msg(pose, stamp, parent, child):
-    from geometry_msgs.msg import TransformStamped
     t = TransformStamped()
     t.header.stamp = stamp
     t.header.frame_id = parent
@@ -143,7 +145,6 @@ def grid_to_map(msg):
 
 
 def map_to_grid(omap, frame_id="map", stamp=None):
-    from nav_msgs.msg import OccupancyGrid
     msg = OccupancyGrid()
     msg.header.frame_id = frame_id
     msg.header.stamp = stamp if stamp is not None else rospy.Time(0)
@@ -165,8 +166,6 @@ def get_map(ns="~"):
             return load_map(yaml_path)
         except InputError as e:
             fatal(f"parameter {param_name('map_yaml', ns)}: {e}")
-    from nav_msgs.msg import OccupancyGrid
-    from nav_msgs.srv import GetMap
     topic = rospy.get_param(ns + "map_topic", "/map")
     service = rospy.get_param(ns + "map_service", "/static_map")
     wait = float(rospy.get_param(ns + "map_wait", 60.0))

@@ -5,7 +5,7 @@ with time, merged with teammates' estimates by taking the minimum). On reaching 
 ``gi[u] = 0`` and picks the first maximum over v != u of
 
     theta_idleness * gi[v] + theta_navigation * pathcost(u, v) [px]
-        + theta_distance_from_origin * |origin - v| [m]
+        + theta_distance_from_origin * ``|origin - v|`` [m]
 
 (origin = the robot's start position), parameters from ``params/DTA/DTAGreedy.params``
 (1, -0.75, -5). It then broadcasts ``[id, 40, I_0..I_{V-1}, next]`` with its own next goal's

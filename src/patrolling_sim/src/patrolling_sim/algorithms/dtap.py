@@ -49,7 +49,7 @@ DEFAULTS = {"timeout": 3.0, "theta_idleness": 1.0, "theta_navigation": 0.0,
 #: the stored value of "no bid yet" (any real bid replaces it)
 NO_BID = float("inf")
 NO_BID_ENTRY = (NO_BID, -1)
-#: auction wait: min(timeout, AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * |tasks|) seconds
+#: auction wait: ``min(timeout, AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * |tasks|)`` seconds
 AUCTION_BASE_WAIT = 1.0
 AUCTION_WAIT_PER_TASK = 0.1
 #: greedy exception: an estimate above mean + GREEDY_SD * SD

@@ -71,8 +71,7 @@ class SchedulerGoneFirst(logging.Filter):
     campaign's own process, has already let the worker go, so the worker's next heartbeat
     fails ("Failed to communicate with scheduler during heartbeat", with a traceback of
     Dask's comm layer) and the scheduler's answer ends it ("Scheduler was unaware of this
-    worker"). Both say only that the campaign is stopping, which it reports itself; seen
-    after a Ctrl-C on a loaded machine (2026-11-27). Only the campaign's own LocalCluster
+    worker"). Both say only that the campaign is stopping, which it reports itself. Only the campaign's own LocalCluster
     workers get this filter (with :class:`IgnoreGroupSignals`), never a user's cluster."""
 
     DROP = ("Failed to communicate with scheduler during heartbeat",

@@ -16,15 +16,14 @@ from patrolling_sim.startpos.initial_poses import load_initial_poses
 from patrolling_sim.startpos.resolve import start_positions
 from spqrel_nav_lite.mapio import load_map
 from spqrel_nav_lite.planner_grid import planner_shape
+import yaml
 
 log = logging.getLogger(__name__)
 
 #: Memory of a full-stack run, peak proportional set size (PSS) of the whole process tree, MB,
-#: by part; measured with bench/runner_bench.py (docs/benchmarks/runner.md, "Memory
-#: estimate", 2026-11-27: 4 robots in robot_nav processes on five maps, 12 pooled on three,
-#: 64 pooled on broughton). A navigation process costs ``nav_process`` plus ``nav_per_mcell``
-#: per million planner cells (the planner's cost grid and graph dominate: 65-70 MB on an empty
-#: map, 114 MB per robot_nav on grid, 383 on broughton); its plan cache comes on top: a
+#: by part, as measured by bench/runner_bench.py (its notes: bench/notes/runner.md, "Memory
+#: estimate"). A navigation process costs ``nav_process`` plus ``nav_per_mcell`` per million
+#: planner cells (the planner's cost grid and graph dominate); its plan cache comes on top: a
 #: navigation function (8 bytes per planner cell) per patrol vertex (only patrol goals get
 #: an entry, docs/navigation.md), in a per-robot move_base at most ``robot_nav_cache`` (its
 #: ``~plan_cache_mb``), in a nav_host all of them (the runner sets ``~plan_cache_goals``).
@@ -239,7 +238,6 @@ def result_map_name(map_arg):
     h = hashlib.sha1()
     files = [yaml_path, graph_path]
     try:
-        import yaml
         with open(yaml_path, encoding="utf-8") as f:
             image = (yaml.safe_load(f) or {}).get("image")
         if image:

@@ -47,7 +47,7 @@ def shortest_path(usable, a, b):
     (length_px, pulled path) or (inf, None).
 
     The search runs in a window around a and b that grows until it provably holds the path
-    (every point p of a path of length l from a to b has |pa| + |pb| <= l), so the result
+    (every point p of a path of length l from a to b has ``|pa| + |pb| <= l``), so the result
     depends only on ``usable`` and the pair {a, b}: the extractor and :func:`check_graph`
     agree."""
     if tuple(b) < tuple(a):

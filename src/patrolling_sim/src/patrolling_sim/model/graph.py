@@ -367,6 +367,6 @@ class PatrolGraph:
         return self._hops
 
     def nearest_vertex(self, x, y):
-        """Vertex minimising |dx| + |dy| to (x, y) metres (first minimum, as the original)."""
+        """Vertex minimising ``|dx| + |dy|`` to (x, y) metres (first minimum, as the original)."""
         d = np.abs(self.pos[:, 0] - x) + np.abs(self.pos[:, 1] - y)
         return int(np.argmin(d))

@@ -280,7 +280,6 @@ def run_status_of(prefix, info, rec=False):
     note = "no _run.yaml (older run): status from info.csv"
     if status == rs.TIMEOUT:
         try:
-            import yaml
             with open(prefix + "_config.yaml", encoding="utf-8") as f:
                 timeout = float((yaml.safe_load(f) or {}).get("timeout") or 0)
         except (OSError, ValueError, TypeError, AttributeError):

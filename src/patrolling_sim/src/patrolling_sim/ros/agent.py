@@ -7,7 +7,7 @@ the back-up twists on ``robot_i/cmd_vel`` and the ``clear_costmaps`` service. Ev
 takes ``self.lock`` and hands the event to the core; nothing blocks inside a callback. A
 goal's outcome is the exception: actionlib reports it holding the goal's own mutex, so it is
 handed to the node's outcome thread, which takes ``self.lock`` (see :meth:`_on_transition`).
-Start-up: load the graph, read ``/initial_pos`` (start vertex = nearest vertex, |dx|+|dy|),
+Start-up: load the graph, read ``/initial_pos`` (start vertex = nearest vertex, ``|dx|+|dy|``),
 wait for ``robot_i/move_base`` (logging every 5 s), then the core announces and waits for GO.
 """
 import queue

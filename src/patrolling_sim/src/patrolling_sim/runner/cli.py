@@ -28,6 +28,7 @@ from patrolling_sim.runner.gui import run_gui
 from patrolling_sim.runner.supervisor import Experiment
 from patrolling_sim.runner.supervisor import read_info
 from patrolling_sim.scenarios.scenario import read_scenario
+from patrolling_sim.runner.video import assemble_video
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
              "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes",
@@ -137,7 +138,6 @@ def run_one(cfg, out=safe_print):
         signal.signal(signal.SIGINT, signal.default_int_handler)
     if cfg.record and getattr(exp, "snapshot_dir", None):
         try:
-            from patrolling_sim.runner.video import assemble_video
             video = assemble_video(exp.snapshot_dir, exp.prefix + "_run.mp4")
             if video:
                 out(f"video: {video}")

@@ -46,6 +46,7 @@ from patrolling_sim.runner.rosenv import experiment_env, free_port
 from patrolling_sim.runner.watch import RosWatcher, master_up, progress_line, read_progress  # noqa: F401
 from patrolling_sim.report.rviz_config import experiment_config_text
 from patrolling_sim.startpos.optimised import write_start_poses
+import ctypes
 
 
 def _terminate_with_parent(parent_pid):
@@ -53,7 +54,6 @@ def _terminate_with_parent(parent_pid):
     SIGKILL), and roslaunch then stops its nodes, so a killed runner leaves no orphans."""
     def setup():
         try:
-            import ctypes
             libc = ctypes.CDLL(None, use_errno=True)
             libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)     # PR_SET_PDEATHSIG
         except (OSError, AttributeError):

@@ -1,5 +1,5 @@
 """A run's scenario: its communication model and robot failures, checked before the run and
-recorded after it in ``<prefix>_scenario.yaml`` by both modes (``docs/scenarios.md``).
+recorded after it in ``<prefix>_scenario.yaml`` by both modes (``docs/scenarios.md``)::
 
     comm, schedule = check_scenario("bernoulli:p=0.3", "2@600", team_size=6, duration=3600)
     ... run ...
