@@ -12,7 +12,7 @@ agents, the monitor, fake_move_base, and rosmaster+rosout+roslaunch. It also che
 
 Usage:
     bench/agent_bench.py [--map grid] [--robots 12] [--algs CR DTAP] [--duration 60]
-                         [--speed 1.0] [--out docs/benchmarks/agent.md]
+                         [--speed 1.0] [--out bench/notes/agent.md]
 """
 import argparse
 import datetime

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Campaign engine benchmark (issue 14): graph-mode runs per second through scripts/campaign.py
+"""Campaign engine benchmark: graph-mode runs per second through scripts/campaign.py
 with 1 and with 2 Dask workers, and the engine's overhead per run compared with calling the
 same worker function in a loop in one process.
 
@@ -111,7 +111,8 @@ def timed_loop(path, store_out=None):
     there as the campaign's client stores them (``campaign_store.store_result``), so that the
     loop does all the work of the campaign and only the engine (Dask, processes, transfers,
     the overlap of storing and running) differs."""
-    from patrolling_sim.campaign.engine import load_campaign, run_graph_task
+    from patrolling_sim.campaign.spec import load_campaign
+    from patrolling_sim.campaign.tasks import run_graph_task
     from patrolling_sim.campaign.store import store_result
     from patrolling_sim.campaign.tasks import WorldCache
     camp = load_campaign(path)
@@ -191,7 +192,7 @@ def main():
     print(f"File creation at the start: {creation[0]:.3f} ms per file ({creation[1]:.3f} ms of "
           "kernel CPU). A campaign's client creates 9 files per graph run; on an ext4 file system "
           "without a journal each creation costs about 10x more (0.4-0.6 ms instead of 0.04 on "
-          "the VM of docs/benchmarks/campaign.md) for minutes after many files were deleted, "
+          "the VM of bench/notes/campaign.md) for minutes after many files were deleted, "
           "which lowers the 2-worker figures.\n")
     print(f"| how | wall (s) | runs/s | per run (ms) | CPU (s) | wall range of {a.repeat} (s) | "
           "median (s) | runs phase (s) |")
@@ -216,7 +217,8 @@ def main():
           f"{100 * (r1 - stored[0]) / stored[0]:+.1f} % (the client stores while the worker "
           f"runs); CPU of the whole campaign {100 * (w1[1] - stored[1]) / stored[1]:+.1f} % with "
           f"1 worker, {100 * (w2[1] - stored[1]) / stored[1]:+.1f} % with 2 (without a 1-run "
-          f"campaign's {fixed_cpu:.1f} CPU s: {100 * (w1[1] - fixed_cpu - stored[1]) / stored[1]:+.1f} "
+          f"campaign's {fixed_cpu:.1f} CPU s: "
+          f"{100 * (w1[1] - fixed_cpu - stored[1]) / stored[1]:+.1f} "
           f"and {100 * (w2[1] - fixed_cpu - stored[1]) / stored[1]:+.1f} %)")
     # the same figures per repetition (each from measurements taken one after the other)
     over = [(100 * (w[0] - lt[0]) / lt[0], 100 * (w[2] - lt[0]) / lt[0], w[2] / v[2])

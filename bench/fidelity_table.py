@@ -34,7 +34,8 @@ def _import(src):
         # a source tree outside a checkout: read maps and params from this one
         os.environ.setdefault("PATROLLING_SIM_DATA", ROOT)
     sys.path.insert(0, os.path.abspath(src))
-    from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
+    from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
+    from patrolling_sim.graphsim.config import GraphSimConfig  # noqa: E402
     from patrolling_sim import algorithms  # noqa: E402
     return GraphSimConfig, GraphSimulator, algorithms
 
@@ -170,8 +171,7 @@ def main():
         "--ros-json", help="ROS-mode figures {alg: [avg, max, visits]} for the last column")
     sub.choices["maps"].add_argument("--duration", type=float, default=3600.0)
     sub.choices["maps"].add_argument("--interference", action="store_true",
-                                     help="model robot-robot interference (default off, as "
-                                          "the graph mode before issue 12)")
+                                     help="model robot-robot interference (default off)")
     d = sub.add_parser("diff", help="changes > threshold between two maps --json files")
     d.add_argument("before")
     d.add_argument("after")

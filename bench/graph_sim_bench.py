@@ -8,7 +8,7 @@ subprocess (so peak RSS is that run's own), no result files written. Prints a Ma
 Usage:
     bench/graph_sim_bench.py [--maps grid cumberland broughton] [--robots 1 4 12]
                              [--algs ...] [--duration 3600] [--interference on|off]
-                             [--out docs/benchmarks/graph_sim.md]
+                             [--out bench/notes/graph_sim.md]
 """
 import argparse
 import datetime
@@ -25,7 +25,8 @@ ALGS = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG"
 CHILD = r"""
 import json, resource, sys, time
 sys.path.insert(0, %r)
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
+from patrolling_sim.graphsim.config import GraphSimConfig
+from patrolling_sim.graphsim.simulator import GraphSimulator
 cfg = GraphSimConfig(map=%r, robots=%d, alg=%r, duration=%f, seed=1, **%r)
 t0 = time.perf_counter()
 sim = GraphSimulator(cfg)

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Load-independent cost of graph-mode runs: instructions executed, counted by valgrind's
 callgrind. On a shared virtual machine the CPU time of the same graph-mode work swings by 20 %
-and more from one minute to the next (docs/benchmarks/graph_sim.md); an instruction count
+and more from one minute to the next (bench/notes/graph_sim.md); an instruction count
 does not, so a change of a few per cent in the simulator can be measured.
 
 A fixed workload of reference-campaign cells (``--cells``, default: seven of them, small and
@@ -21,7 +21,6 @@ import json
 import os
 import re
 import subprocess
-import sys
 import tempfile
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))

@@ -11,7 +11,7 @@
    seconds. CPU of each node is sampled from /proc and reported per robot (localiser,
    move_base, both together), plus the goal outcomes.
 
-Usage: bench/nav_bench.py [--robots 4] [--duration 60] [--skip-live] [--out docs/benchmarks/nav.md]
+Usage: bench/nav_bench.py [--robots 4] [--duration 60] [--skip-live] [--out bench/notes/nav.md]
 """
 import argparse
 import math
@@ -184,9 +184,10 @@ def live_run(loc, n, duration, env, combined=False):
              f'    <arg name="map" value="{yaml_path}"/>',
              f'    <arg name="poses" value="{poses}"/>', '    <arg name="speedup" value="1.0"/>',
              '  </include>',
-             f'  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" args="{yaml_path}"/>']
+             '  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" '
+             f'args="{yaml_path}"/>']
     for i, v in enumerate(starts):
-        lines += [f'  <include file="{ROOT}/launch/robot.launch">',
+        lines += ['  <include file="$(find patrolling_sim)/launch/robot.launch">',
                   f'    <arg name="robotname" value="robot_{i}"/>',
                   f'    <arg name="map_yaml" value="{yaml_path}"/>',
                   f'    <arg name="x" value="{g.pos[v][0]:.3f}"/>',
@@ -301,8 +302,9 @@ def main():
             rows.append(f"| {name} | {n} | {med:.2f} | {p95:.2f} |")
     rows += ["", "## Global planner (longest vertex pair)", "",
              "| map | grid | build s | plan s (new goal: Dijkstra) | plan s (goal seen before: "
-             "cache) | re-plan s (current field) | path m | longest edge, robot 3 m ahead: windowed "
-             "search s | same, whole-map search s |", "|---|---|---|---|---|---|---|---|---|"]
+             "cache) | re-plan s (current field) | path m | longest edge, robot 3 m ahead: "
+             "windowed search s | same, whole-map search s |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for name in ("grid", "broughton", "DIAG_floor1"):
         r = bench_planner(name)
         rows.append(f"| {name} | {r['cells']} | {r['build']:.3f} | {r['plan']:.3f} | "

@@ -58,7 +58,8 @@ def main():
                           30.0 + 5 * i)
         t0 = time.monotonic()
         subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "report.py"),
-                        os.path.join(tmp, "res"), "--out", os.path.join(tmp, "out"), "-q"] + (["--no-run-plots"] if a.no_run_plots else []),
+                        os.path.join(tmp, "res"), "--out", os.path.join(tmp, "out"), "-q"]
+                       + (["--no-run-plots"] if a.no_run_plots else []),
                        check=True)
         wall = time.monotonic() - t0
         size = os.path.getsize(os.path.join(tmp, "out", "report.html")) / 1e6

@@ -23,7 +23,7 @@ process tree from /proc once per second:
 Usage:
     bench/runner_bench.py [--robots 4 8 12] [--loc fake_localization AMCL] [--timeout 300]
                           [--speedup 4] [--processes shared|separate|pooled[:K]|
-                          pooled-separate[:K]] [--map grid] [--out docs/benchmarks/runner.md]
+                          pooled-separate[:K]] [--map grid] [--out bench/notes/runner.md]
 """
 import argparse
 import glob
@@ -116,7 +116,7 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
             cum += max(0, t - seen.get(x, 0))
             if not nav_pids.get(x):
                 # not cached while False: a process seen between its fork and its exec still
-                # shows its parent's command line (2026-11-28: one nav_host of two missed)
+                # shows its parent's command line (a nav_host can be missed otherwise)
                 nav_pids[x] = is_nav(x)
             if nav_pids[x]:
                 cum_nav += max(0, t - seen.get(x, 0))
@@ -159,8 +159,8 @@ def run_one(robots, loc, timeout, speedup, alg, results_dir, processes, map_name
         res["idl"] = float(f[15]) if f[15].strip() else float("nan")
         res["interf"] = int(f[12])
     res["load"] = os.getloadavg()[0]
-    # the runner's memory estimate for this run (patrolling_sim.experiment.validation), to compare with
-    # the measured peak PSS when its figures are updated
+    # the runner's memory estimate for this run (patrolling_sim.experiment.validation), to
+    # compare with the measured peak PSS when its figures are updated
     from patrolling_sim.experiment import validation
     res["estimate_mb"] = validation.memory_estimate_mb(
         robots, processes, *validation.map_memory_figures(map_name))

@@ -52,10 +52,13 @@ CATEGORIES = [
     ("move_base_node.py", "laser", "laser: points + field"),
     ("planner.py", "*", "planning"),
     ("planner_grid.py", "*", "planning"),
+    ("obstacle_search.py", "*", "planning"),
     ("controller.py", "*", "controller"),
     ("move_base_node.py", "send", "publishing cmd_vel"),
     ("move_base_node.py", "publish_plan", "publishing plan"),
     ("move_base_goal.py", "*", "control loop (other)"),
+    ("control_loop.py", "*", "control loop (other)"),
+    ("goal_waits.py", "*", "control loop (other)"),
     ("move_base_node.py", "*", "move_base inputs"),
     ("geometry.py", "*", "geometry"),
 ]

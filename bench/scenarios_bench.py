@@ -31,9 +31,10 @@ import tempfile
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 from patrolling_sim.algorithms import REGISTRY  # noqa: E402
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
+from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
+from patrolling_sim.graphsim.config import GraphSimConfig  # noqa: E402
 from patrolling_sim.monitor.metrics import (failure_impact, graph_idleness_series,  # noqa: E402
-                                    read_visits)
+                                            read_visits)
 from patrolling_sim.scenarios.scenario import read_scenario, scenario_columns  # noqa: E402
 
 COMMS = ["perfect", "bernoulli:p=0.3", "ge:p_good=0,p_bad=1,to_bad=0.05,to_good=0.5",
@@ -97,7 +98,6 @@ def comms(a, out):
 
 def campaign_table(root):
     import glob
-    from patrolling_sim.common import paths
     from patrolling_sim.model import map_bundle
     from patrolling_sim.monitor.results import parse_info_line
     from patrolling_sim.scenarios.scenario import scenario_metrics

@@ -9,16 +9,16 @@ memory, for several maps and team sizes, in three laser modes:
 
 Each run: own rosmaster on a free port, node started with the map and computed start
 positions (scripts/graph_tool.py startposes); by default every robot turns on the spot (one
-latched cmd_vel, watchdog off), so every scan is recomputed; warm-up, then a measuring window. The RTF is
-sim seconds per wall second over the window (from the node's periodic log lines); CPU% is the node's
-user+system time over the window (100 % = one core); "sim s per node CPU s" = RTF / (CPU% / 100),
-a figure less sensitive to other load on the machine; RSS is the node's resident memory.
+latched cmd_vel, watchdog off), so every scan is recomputed; warm-up, then a measuring
+window. The RTF is sim seconds per wall second over the window (from the node's periodic log
+lines); CPU% is the node's user+system time over the window (100 % = one core); "sim s per
+node CPU s" = RTF / (CPU% / 100), a figure less sensitive to other load on the machine; RSS
+is the node's resident memory.
 
   /usr/bin/python3 bench/stage2d_bench.py                       # default matrix, markdown table
   /usr/bin/python3 bench/stage2d_bench.py --maps cumberland --robots 12 200 --modes calc
 """
 import argparse
-import json
 import os
 import platform
 import re
@@ -216,7 +216,8 @@ def main():
     print(f"<!-- {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, "
           f"{os.cpu_count()} cores, {platform.processor() or platform.machine()}, "
           f"robots {args.motion} -->")
-    print("| map | robots | lasers | RTF (speedup 0) | sim s per node CPU s | node CPU % | node RSS MB | subscriber CPU % | load avg |")
+    print("| map | robots | lasers | RTF (speedup 0) | sim s per node CPU s | node CPU % "
+          "| node RSS MB | subscriber CPU % | load avg |")
     print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for m in args.maps:
         for n in args.robots:
@@ -229,7 +230,8 @@ def main():
                     print(f"| {m} | {n} | {mode} | error: {str(e)[:80]} | | | | | |", flush=True)
                     continue
                 sub = f"{r['sub_cpu']:.0f}" if r["sub_cpu"] is not None else ""
-                print(f"| {m} | {n} | {mode} | {r['rtf']:.1f} | {r['sim_per_cpu']:.1f} | {r['cpu']:.0f} | {r['rss']:.0f} | {sub} | {r['load']:.1f} |",
+                print(f"| {m} | {n} | {mode} | {r['rtf']:.1f} | {r['sim_per_cpu']:.1f} "
+                      f"| {r['cpu']:.0f} | {r['rss']:.0f} | {sub} | {r['load']:.1f} |",
                       flush=True)
 
 

@@ -5,9 +5,9 @@ an instruction count does not).
 
 The node runs headless under callgrind with speedup 0, one scan thread, the command wait and
 the cmd_vel watchdog off, every scan computed (~scan_always) and every robot turning on the
-spot (one latched cmd_vel, advertised before the node starts). Once the node has logged that it is set up (map loaded, robots
-created), 5 s later the counters are zeroed (callgrind_control --zero), so loading the map and the
-first connections are left out;
+spot (one latched cmd_vel, advertised before the node starts). Once the node has logged that
+it is set up (map loaded, robots created), 5 s later the counters are zeroed
+(callgrind_control --zero), so loading the map and the first connections are left out;
 after --seconds more wall seconds the node is stopped with SIGINT and callgrind writes its
 counts. Steps are counted by the calls of b2World::Step (in the Box2D library, so never
 inlined) divided by the physics sub-steps per step (10 with the default 0.1 s step). The
@@ -108,14 +108,15 @@ def main():
         wait_for_publishers(env, a.robots)
         # --fair-sched=yes: with valgrind's default (unfair) thread scheduling the busy main
         # thread starved roscpp's other threads, so the node never acted on the SIGINT below
-        # and was killed before callgrind wrote its counts (2026-11-27, valgrind 3.19)
+        # and was killed before callgrind wrote its counts (valgrind 3.19)
         node = subprocess.Popen(
             ["stdbuf", "-oL", "valgrind", "--tool=callgrind", "--fair-sched=yes",
              f"--callgrind-out-file={out}",
              a.binary, "__name:=stage2d", f"_map:={yaml_path}",
              f"_poses:={start_poses(a.map, a.robots)}", "_speedup:=0", "_cmd_vel_timeout:=1e9",
              "_sync_timeout:=0", "_threads:=1", "_scan_always:=true"],
-            env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, start_new_session=True, text=True)
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, start_new_session=True,
+            text=True)
         procs.append(node)
         for line in node.stdout:  # wait until set up
             if "robots, step" in line:

@@ -1,7 +1,6 @@
 #!/usr/bin/python3
 """Start-position benchmark: worst idleness with ``--initpos optimised`` against the default
-start, in graph mode (the issue's world: straight-line travel at 1 m/s, goal wait 0, no
-interference).
+start, in graph mode (straight-line travel at 1 m/s, goal wait 0, no interference).
 
 For each map, team size and algorithm: one run of ``--duration`` simulated seconds with each
 start; prints a Markdown table (and writes it to ``--out``). For CGG it also prints L/(N v),
@@ -9,7 +8,7 @@ the ideal worst idleness of N robots evenly spread on a closed walk of length L.
 
 Usage:
     bench/startpos_bench.py [--maps ...] [--robots 2 4 8] [--algs CGG MSP] [--seeds 1 2 3]
-                            [--duration 3000] [--out docs/benchmarks/startpos.md]
+                            [--duration 3000] [--out bench/notes/startpos.md]
 
 Each robot starts after a random U(0, 1) s delay (seeded), so single runs differ by up to
 about a second; ``--seeds`` averages over several.
@@ -24,7 +23,8 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
 from patrolling_sim.common import paths  # noqa: E402
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
+from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
+from patrolling_sim.graphsim.config import GraphSimConfig  # noqa: E402
 from patrolling_sim.model.graph import PatrolGraph  # noqa: E402
 from patrolling_sim.startpos.optimised import probe_route  # noqa: E402
 from patrolling_sim.planning.routes import route_cost  # noqa: E402

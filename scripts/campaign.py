@@ -4,9 +4,6 @@ import os
 import signal
 import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src",
-                                "patrolling_sim", "src"))
-
 
 def _early_signal(signum, frame):
     # a signal while the modules load ends the program at once, in one line (nothing written
@@ -20,14 +17,16 @@ def _early_signal(signum, frame):
 if __name__ == "__main__":      # Dask's worker processes re-import this file: no side effects
     signal.signal(signal.SIGINT, _early_signal)
     signal.signal(signal.SIGTERM, _early_signal)
-    from patrolling_sim.campaign.engine import main
+    import early_signal
+    early_signal.require("campaign.py", ("distributed",))
+    from patrolling_sim.campaign.cli import main
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     rc = main()
     # Everything is written and closed. The interpreter's last garbage collections would
     # only walk the objects of numpy, pandas, networkx and distributed before the process
-    # ends (0.12-0.15 s of a campaign command's fixed cost, docs/benchmarks/campaign.md):
-    # freezing them skips that; exit handlers and finalizers still run.
+    # ends (part of a campaign command's fixed cost, bench/notes/campaign.md): freezing
+    # them skips that; exit handlers and finalizers still run.
     import gc
     gc.freeze()
     sys.exit(rc)

@@ -25,3 +25,25 @@ def install(program):
     signal.signal(signal.SIGTERM, handler)
     # delivered now if it came while blocked by the parent (see the module docstring)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+
+
+def require(program, modules=()):
+    """Exit at once with one line and status 2 unless this interpreter can import the
+    workspace's packages and ``modules`` (e.g. ``("rospy",)`` for the ROS runner): nothing
+    has been started yet. The packages come from the workspace's environment
+    (``source devel/setup.bash``, or an install space's ``setup.bash``)."""
+    import importlib.util
+    if importlib.util.find_spec("patrolling_sim") is None:
+        _refuse(f"{program}: the patrolling_sim package is not on this Python's path: run "
+                "`source devel/setup.bash` (after `make setup`) first")
+    for module in modules:
+        if importlib.util.find_spec(module) is None:
+            _refuse(f"{program}: this Python ({sys.executable}) cannot import {module}: run "
+                    f"with /usr/bin/python3 (Debian's, which has it), e.g. "
+                    f"`/usr/bin/python3 {sys.argv[0]} ...`")
+
+
+def _refuse(line):
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
+    os._exit(2)

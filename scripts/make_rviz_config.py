@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Generate the rviz configuration for patrolling experiments (launch/patrol.rviz).
+"""Generate the rviz configuration of patrolling experiments
+(src/patrolling_sim/launch/patrol.rviz).
 
     scripts/make_rviz_config.py [--robots N] [--enabled K] [--map MAP] [--out FILE]
 
@@ -10,10 +11,12 @@ the top-down view is centred on that map. Writes to stdout without --out.
 import os
 import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src",
-                                "patrolling_sim", "src"))
-from patrolling_sim.common.cli import CliParser, run_main  # noqa: E402
-from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
+import early_signal
+
+early_signal.require("make_rviz_config.py")
+
+from patrolling_sim.common.cli import CliParser, run_main
+from patrolling_sim.common.errors import PatrolInputError
 
 PROG = "make_rviz_config.py"
 
@@ -58,7 +61,8 @@ def main(argv):
                 f.write(text)
             os.replace(a.out + ".tmp", a.out)
         except OSError as e:
-            raise PatrolInputError(f"argument --out: cannot write '{a.out}' ({e.strerror})") from None
+            raise PatrolInputError(
+                f"argument --out: cannot write '{a.out}' ({e.strerror})") from None
     else:
         sys.stdout.write(text)
     return 0

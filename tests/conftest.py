@@ -1,5 +1,5 @@
-"""pytest configuration: make the workspace's pure-Python packages importable without
-sourcing devel/setup.bash, and share fixtures."""
+"""pytest configuration: make the workspace's pure-Python packages importable (in the tests
+and in the programs they start) without sourcing devel/setup.bash, and share fixtures."""
 import os
 import signal
 import sys
@@ -7,10 +7,14 @@ import sys
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
-for pkg in ("patrolling_sim", "spqrel_nav_lite"):
-    p = os.path.join(ROOT, "src", pkg, "src")
+_SOURCES = [os.path.join(ROOT, "src", pkg, "src") for pkg in ("patrolling_sim", "spqrel_nav_lite")]
+for p in _SOURCES:
     if p not in sys.path:
         sys.path.insert(0, p)
+# ... and for the programs the tests start (scripts/*.py need the packages on their path, as
+# `source devel/setup.bash` gives them)
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    _SOURCES + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
 
 
 # --- the navigation's plan store (spqrel_nav_lite.plan_store) ----------------------------
@@ -64,8 +68,8 @@ def pytest_collection_modifyitems(config, items):
     first two groups one worker each and the third to the worker that runs out of work first:
     the unit tests' worker (about 300 s of unit tests against 1000 s of the first ROS group).
     So two ROS tests run at a time for most of the session (each starts its own master on a
-    free port; a ROS test uses about half a core to one core, docs/BENCHMARKS.md "Setup and
-    test suite"), and the tests within a group one after another. The modules of
+    free port; a ROS test uses about half a core to one core, bench/notes/BENCHMARKS.md
+    "Setup and test suite"), and the tests within a group one after another. The modules of
     :data:`ROS_LAST` end the second group: they make several experiments at a time and take
     most of both cores. The groups are balanced from the durations ``.ci/run`` lists (tests
     of 10 s or more): the unit tests plus the second group against the first. Without xdist

@@ -43,7 +43,8 @@ def junit_summary(ros_home):
             errors += int(s.get("errors", 0))
             for case in s.iter("testcase"):
                 for bad in list(case.findall("failure")) + list(case.findall("error")):
-                    msgs.append(f"{case.get('name')}: {(bad.get('message') or bad.text or '')[:500]}")
+                    msgs.append(
+                        f"{case.get('name')}: {(bad.get('message') or bad.text or '')[:500]}")
     return tests, failures, errors, msgs
 
 

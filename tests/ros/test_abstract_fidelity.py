@@ -1,4 +1,4 @@
-"""ROS mode against the original (issue 12): our agents and monitor, started by the runner
+"""ROS mode against the original: our agents and monitor, started by the runner
 with ``--nav abstract --processes shared``, patrol grid with 4 robots for 600 sim s in the
 abstract world, the world of the original's reference runs (docs/abstract_world.md). Each
 algorithm's figures are compared with the mean of the original's runs, read from the
@@ -25,7 +25,7 @@ import fidelity_common as fc  # noqa: E402
 from abstract_runs import mean_figures, run_abstract  # noqa: E402
 
 ALGS = ("CR", "CGG", "SEBS", "DTAG", "DTAP")
-#: relative tolerances against the original's mean (issue 12 acceptance)
+#: relative tolerances against the original's mean
 TOLERANCE = dict(avg=0.10, max=0.25, visits=0.10)
 #: graph mode vs ROS mode, same algorithm, seed and world: average idleness
 GRAPH_TOLERANCE = 0.05
@@ -34,7 +34,7 @@ GRAPH_TOLERANCE = 0.05
 #: against the original's mean of 132.9 s; DTAG 103-137 s in graph mode (seeds 0-9, mean
 #: 122 s) against the original's 134.2 s, so that one run at 103 s misses the 25 % bound
 #: (100.6 s); SEBS 62-85 s in graph mode (seeds 0-29) but 57.7-98.8 s in ROS mode (24 runs
-#: two at a time beside two CPU hogs, 2026-11-26; 3 of the 24 outside the 25 % bound of
+#: two at a time beside two CPU hogs; 3 of the 24 outside the 25 % bound of
 #: 59.1-98.4 s) and 115.4 s once in CI, against the original's 78.8 s. So these are averaged
 #: (DTAG over 3 runs, SEBS over 4: a 4-run mean drawn from those 25 runs misses the bound in
 #: 0.2 % of draws). DTAP's maximum spreads most: the original's own agents gave 84.8-181.4 s
@@ -58,7 +58,7 @@ SPREAD_SE = 3.0
 
 def tolerance(name, theirs, n_ours):
     """The relative tolerance for figure ``name`` of our mean over ``n_ours`` runs against the
-    mean of the original's runs ``theirs`` (one value per run): the issue's TOLERANCE, or,
+    mean of the original's runs ``theirs`` (one value per run): TOLERANCE, or,
     where the original's own runs spread so widely that a mean of ``n_ours`` runs drawn from
     the same spread would often leave it by chance (DTAP's maximum: SD 24 s on a mean of
     111 s), SPREAD_SE standard errors of the difference of the two means, estimated from the

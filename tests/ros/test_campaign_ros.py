@@ -1,4 +1,4 @@
-"""A small ROS-mode campaign (issue 14): grid, 2 algorithms, 2 robots, 60 s, two experiments
+"""A small ROS-mode campaign: grid, 2 algorithms, 2 robots, 60 s, two experiments
 at a time on a LocalCluster, each with its own ROS master; the table lists both runs."""
 import os
 import subprocess

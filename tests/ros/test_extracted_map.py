@@ -1,4 +1,4 @@
-"""Issue 16: a full-stack experiment on a map whose graph was extracted automatically:
+"""A full-stack experiment on a map whose graph was extracted automatically:
 grid's image -> graph_tool.py extract -> 4 robots, CGG, fake localisation, optimised start,
 300 s at speedup 8 -- every vertex visited (and revisited)."""
 import os

@@ -1,4 +1,4 @@
-"""The Tk launcher on a virtual screen, and recorded runs (issue 7 acceptance).
+"""The Tk launcher on a virtual screen, and recorded runs.
 
 - The GUI, under Xvfb, is driven through its own widgets: it shows the remembered
   configuration, starts a short experiment, shows live progress, is stopped with its Stop

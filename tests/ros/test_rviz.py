@@ -1,4 +1,4 @@
-"""launch/patrol.rviz loads in rviz on a virtual screen and shows the map.
+"""src/patrolling_sim/launch/patrol.rviz loads in rviz on a virtual screen and shows the map.
 
 A master of our own on a free port; a small publisher sends the grid map on /map, patrol
 graph markers and robot_0's pose; rviz runs under xvfb-run for ~10 s, then a screenshot of
@@ -18,7 +18,7 @@ import time
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-CONFIG = os.path.join(ROOT, "launch", "patrol.rviz")
+CONFIG = os.path.join(ROOT, "src", "patrolling_sim", "launch", "patrol.rviz")
 GENERATOR = os.path.join(ROOT, "scripts", "make_rviz_config.py")
 SRC = os.path.join(ROOT, "src", "patrolling_sim", "src")
 
@@ -132,7 +132,8 @@ def test_committed_config_is_generated():
     out = subprocess.run([sys.executable, GENERATOR, "--robots", "8", "--enabled", "4",
                           "--map", "grid"], capture_output=True, text=True, check=True).stdout
     with open(CONFIG, encoding="utf-8") as f:
-        assert f.read() == out, "launch/patrol.rviz is stale: regenerate it (see its header)"
+        assert f.read() == out, ("src/patrolling_sim/launch/patrol.rviz is stale: regenerate it "
+                                 "(see its header)")
     for needle in ("Fixed Frame: map", "Topic: /map", "Marker Topic: /patrol_graph_markers",
                    "Topic: /robot_7/move_base/plan", "Topic: /robot_0/amcl_pose",
                    "Topic: /robot_3/base_scan", "Topic: /robot_5/particlecloud"):

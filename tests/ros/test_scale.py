@@ -1,4 +1,4 @@
-"""Full stack at scale (issue 18): 16 robots with their navigation pooled in nav_host
+"""Full stack at scale: 16 robots with their navigation pooled in nav_host
 processes and one agent process per robot (``--processes pooled-separate:2``), as real robots
 would run the agents. While the run goes on, tests/ros/nav_layout_check.py checks on its
 master that every robot keeps the per-robot navigation interface (topics, types, the
@@ -7,8 +7,8 @@ frames); at the end every vertex must have been visited, with files valid and no
 running. The algorithm is CR: with CGG from the default start poses of 16 robots on grid,
 vertex 0 stays unvisited for minutes in every layout (robot_nav per robot too), so CGG
 could not show "every vertex visited" in a short run. 240 sim s at x6: in 120 s at x10 on a
-loaded 2-core machine (pace 4-5x reached) 16 robots crowding 25 vertices once left a vertex
-unvisited (CI, 2026-11-25)."""
+loaded 2-core machine (pace 4-5x reached) 16 robots crowding 25 vertices can leave a vertex
+unvisited."""
 import os
 import re
 import subprocess

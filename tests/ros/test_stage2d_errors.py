@@ -102,7 +102,8 @@ def test_unreadable_image(master, maps):
 
 
 def test_malformed_yaml_value(master, maps):
-    y = maps("image: m.pgm\nresolution: abc\norigin: [0, 0, 0]\n", b"P5\n2 2\n255\n\xff\xff\xff\xff")
+    y = maps("image: m.pgm\nresolution: abc\norigin: [0, 0, 0]\n",
+             b"P5\n2 2\n255\n\xff\xff\xff\xff")
     check_fails(run_node(master, map=y, poses="0.05 0.05 0"), y, "resolution")
 
 
@@ -112,7 +113,8 @@ def test_malformed_origin(master, maps):
 
 
 def test_poses_not_multiple_of_three(master):
-    check_fails(run_node(master, map=GRID, poses="1.425 24.375 1.5708 1.425"), "~poses", "multiple of 3")
+    check_fails(run_node(master, map=GRID, poses="1.425 24.375 1.5708 1.425"), "~poses",
+                "multiple of 3")
 
 
 def test_poses_not_numbers(master):
@@ -120,7 +122,8 @@ def test_poses_not_numbers(master):
 
 
 def test_pose_off_map(master):
-    check_fails(run_node(master, map=GRID, poses="1.425 24.375 0 30.0 5.0 0"), "robot 1", "off the map")
+    check_fails(run_node(master, map=GRID, poses="1.425 24.375 0 30.0 5.0 0"), "robot 1",
+                "off the map")
 
 
 def test_pose_inside_wall(master):

@@ -16,7 +16,8 @@ import os
 import statistics
 
 from patrolling_sim.algorithms import names
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
+from patrolling_sim.graphsim.simulator import GraphSimulator
+from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.monitor.results import parse_info_line
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "original_runs", "grid_4")

@@ -163,7 +163,7 @@ def test_failed_goal_resent_three_times_then_strategy_chooses():
         world.advance(BACKUP_DURATION - 0.01)
         assert log[-1][0] == "clear"                          # not resent before the back-up
         world.advance(0.02)
-        assert log[-1] [0] == "goal" and log[-1][2] == target
+        assert log[-1][0] == "goal" and log[-1][2] == target
     core.on_goal_result(core.seq, False)
     world.advance(BACKUP_DURATION + 0.01)
     assert kinds(log)[-2:] == ["failed", "goal"]

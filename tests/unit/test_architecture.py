@@ -40,9 +40,11 @@ def _modules():
 MODULES = dict(_modules())
 
 
-def _imports(path):
-    """[(imported name, ImportFrom alias names or None, node, inside a function)] of a file."""
+def _imports(path, module=None):
+    """[(imported name, ImportFrom alias names or None, node, inside a function)] of a file;
+    relative imports are resolved against ``module`` (the file's module name)."""
     tree = ast.parse(open(path, encoding="utf-8").read(), path)
+    package = (module if path.endswith("__init__.py") else (module or "").rpartition(".")[0])
     out = []
 
     def visit(node, in_function):
@@ -50,8 +52,12 @@ def _imports(path):
             inner = in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef))
             if isinstance(child, ast.Import):
                 out.extend((a.name, None, child, in_function) for a in child.names)
-            elif isinstance(child, ast.ImportFrom) and not child.level:
-                out.append((child.module, [a.name for a in child.names], child, in_function))
+            elif isinstance(child, ast.ImportFrom):
+                name = child.module
+                if child.level:
+                    base = package.split(".")[:len(package.split(".")) - child.level + 1]
+                    name = ".".join(base + ([child.module] if child.module else []))
+                out.append((name, [a.name for a in child.names], child, in_function))
             visit(child, inner)
     visit(tree, False)
     return out
@@ -81,7 +87,7 @@ def test_no_import_cycle():
     g = nx.DiGraph()
     for mod, path in MODULES.items():
         g.add_node(mod)
-        for name, names, _, _ in _imports(path):
+        for name, names, _, _ in _imports(path, mod):
             targets = [name] if names is None else [f"{name}.{n}" for n in names] + [name]
             for t in targets:
                 dep = _project_module(t)
@@ -96,7 +102,7 @@ def test_no_private_name_crosses_modules():
     bad = []
     for mod, path in MODULES.items():
         imported = {}
-        for name, names, node, _ in _imports(path):
+        for name, names, node, _ in _imports(path, mod):
             if names is None:
                 continue
             for n in names:
@@ -117,8 +123,8 @@ def test_imports_inside_functions_are_deferred_dependencies_only():
     """An import inside a function is of a dependency listed in DEFERRED (heavy or optional,
     needed by one feature), never of a project module or a cheap library."""
     bad = [f"{path}:{node.lineno}: {name}"
-           for path in MODULES.values()
-           for name, _, node, inside in _imports(path)
+           for mod, path in MODULES.items()
+           for name, _, node, inside in _imports(path, mod)
            if inside and name.split(".")[0] not in DEFERRED]
     assert not bad, "imports inside functions:\n" + "\n".join(bad)
 

@@ -1,4 +1,5 @@
-"""Attrition schedules (patrolling_sim.scenarios.attrition): explicit and random, seeded, validated."""
+"""Attrition schedules (patrolling_sim.scenarios.attrition): explicit and random, seeded,
+validated."""
 import pytest
 
 from patrolling_sim.scenarios.attrition import Failure, describe, parse_attrition, random_schedule

@@ -1,7 +1,6 @@
 """A signal that lands while a batch starts a run (scripts/start_experiments.py --batch):
 the run's process exists, so it must be in the running table, stopped and listed as
-interrupted, never left behind as "never started" (a CI run of
-tests/ros/test_faults.py::test_interrupted_batch_prints_its_table caught the race)."""
+interrupted, never left behind as "never started"."""
 import os
 import signal
 import subprocess
@@ -42,7 +41,7 @@ def test_a_signal_during_the_childs_start_up_waits_for_its_handlers(tmp_path):
     child = tmp_path / "slow.py"
     child.write_text(SLOW_START.format(scripts=os.path.abspath(SCRIPTS)))
     p = batch.spawn_with_signals_held([sys.executable, str(child)], stdout=subprocess.PIPE,
-                                    stderr=subprocess.STDOUT, start_new_session=True)
+                                      stderr=subprocess.STDOUT, start_new_session=True)
     try:
         os.kill(p.pid, signal.SIGINT)
         out, _ = p.communicate(timeout=60)

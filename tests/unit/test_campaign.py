@@ -1,6 +1,6 @@
-"""Campaigns (patrolling_sim.campaign.engine): validation of campaign files, a graph-mode campaign on
-a 2-worker LocalCluster interrupted and resumed, and the same campaign on a separately started
-Dask scheduler + 2 workers."""
+"""Campaigns (patrolling_sim.campaign.engine): validation of campaign files, a graph-mode
+campaign on a 2-worker LocalCluster interrupted and resumed, and the same campaign on a
+separately started Dask scheduler + 2 workers."""
 import logging
 import os
 import signal
@@ -14,12 +14,12 @@ import pytest
 import yaml
 
 import process_guard  # tests/process_guard.py (tests/conftest.py puts tests/ on the path)
-from patrolling_sim.campaign.engine import load_campaign, load_state
+from patrolling_sim.campaign.spec import load_campaign
+from patrolling_sim.campaign.store import load_state
 from patrolling_sim.common.errors import PatrolInputError
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 SCRIPT = os.path.join(ROOT, "scripts", "campaign.py")
-SRC = os.path.join(ROOT, "src", "patrolling_sim", "src")
 CAMPAIGN = {"name": "t", "mode": "graph", "fixed": {"duration": 300},
             "grid": {"map": ["grid", "1r5"], "robots": [2], "alg": ["CR", "CGG"]}, "seeds": 3}
 METRICS = ["idl_avg", "idl_max", "total_visits", "complete_cycles", "time_avg_idleness",
@@ -40,9 +40,9 @@ def _write(tmp_path, data, name="c.yaml"):
 
 
 def _env():
-    env = dict(os.environ, PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
-    env["PYTHONPATH"] = SRC
-    return env
+    """The environment of the campaign programs the tests start (the packages' source folders
+    on PYTHONPATH come from tests/conftest.py)."""
+    return dict(os.environ, PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
 
 
 @pytest.mark.parametrize("change, words", [
@@ -302,7 +302,7 @@ def test_a_runs_warnings_go_to_its_record_not_to_the_terminal(tmp_path, monkeypa
     runs.csv counts them, the summary says how many runs had some, and nothing is printed."""
     import logging
     from patrolling_sim.graphsim import simulator as graph_sim
-    from patrolling_sim.campaign.engine import store_result, write_table
+    from patrolling_sim.campaign.store import store_result, write_table
     from patrolling_sim.campaign.store import summary_table
     from patrolling_sim.campaign.tasks import run_graph_task
     real_run = graph_sim.GraphSimulator.run
@@ -349,7 +349,7 @@ def test_runs_table_reads_as_pandas_own_and_summary_agrees_with_pandas(tmp_path)
     import math
     from patrolling_sim.campaign.store import summary_table, table_rows, write_table
     camp = load_campaign(_write(tmp_path, dict(CAMPAIGN, fixed={"duration": 300,
-                                                               "params": {"a": [1, 2]}})))
+                                                                "params": {"a": [1, 2]}})))
     out = str(tmp_path / "out")
     os.makedirs(out)
     state = {}
@@ -388,7 +388,7 @@ def test_runs_table_reads_as_pandas_own_and_summary_agrees_with_pandas(tmp_path)
             assert not math.isnan(want) and float(got) == pytest.approx(round(want, 2))
     counts = theirs["status"].value_counts().to_dict()
     assert text[1 + len(expect)] == "status: " + ", ".join(f"{k} {v}" for k, v in
-                                                             sorted(counts.items()))
+                                                           sorted(counts.items()))
     assert text[-1].startswith("warnings: 4 run(s) logged warnings")
 
 
@@ -425,7 +425,7 @@ def test_overlapping_runs_restore_the_loggers_propagation():
 def test_runs_with_one_time_stamp_keep_their_files_apart(tmp_path):
     """Runs stored within one second share a prefix: each gets its own suffix, across calls
     (a resumed campaign starts with an empty suffix memory and must not overwrite files)."""
-    from patrolling_sim.campaign.engine import store_result
+    from patrolling_sim.campaign.store import store_result
     camp = load_campaign(_write(tmp_path, CAMPAIGN))
     out = str(tmp_path / "out")
 
@@ -474,7 +474,7 @@ def test_a_signal_after_the_last_run_interrupts_nothing(tmp_path):
     assert signal.getsignal(signal.SIGINT) == before
 
     camp4 = load_campaign(_write(tmp_path, dict(CAMPAIGN, grid=dict(CAMPAIGN["grid"],
-                                                                     map=["grid"], alg=["CR"]),
+                                                                    map=["grid"], alg=["CR"]),
                                                 seeds=40, fixed={"duration": 3600}),
                                  name="c4.yaml"))
     out = str(tmp_path / "early")
@@ -604,43 +604,6 @@ def test_local_workers_are_forked_from_a_preloaded_server(tmp_path):
     assert dask.config.get("distributed.worker.multiprocessing-method") == "forkserver"
 
 
-def test_local_cluster_version_check_skips_pandas_and_is_restored(tmp_path):
-    """Dask's version check imports pandas in every worker when it registers (0.15-0.2 s of
-    the cluster's start, campaign_forkserver.drop_unused_version_checks): the workers of a
-    LocalCluster campaign never load it (no pandas extension mapped in their memory while a
-    run is stored), and after the campaign this process's check lists pandas again (a later
-    --scheduler campaign compares it with remote workers). Also: provenance.yaml's timing."""
-    import io
-    from multiprocessing import forkserver
-    from distributed import versions
-    import patrolling_sim.campaign.engine as campaign_mod
-    camp = _grid_cr_campaign(tmp_path)
-    maps = []
-
-    def look(rec):
-        server = forkserver._forkserver._forkserver_pid
-        for pid in _children_of(server) if server else []:
-            with open(f"/proc/{pid}/maps") as f:
-                maps.append(f.read())
-
-    assert "pandas" in [p[0] for p in versions.optional_packages]
-    res = campaign_mod.run_campaign(camp, str(tmp_path / "out"), workers=2,
-                                    stream=io.StringIO(), on_record=look)
-    assert res["ran"] == 2 and not res["interrupted"]
-    assert maps and all("numpy" in m for m in maps)      # the workers' memory was read...
-    assert not [m for m in maps if "/pandas/" in m]      # ... and holds no pandas
-    assert "pandas" in [p[0] for p in versions.optional_packages]
-    assert (tmp_path / "out" / "runs.csv").is_file()     # the client still writes its table
-    # provenance.yaml's timing: the engine's start, then the runs phase
-    timing = yaml.safe_load((tmp_path / "out" / "provenance.yaml").read_text())["timing"]
-    assert timing["runs_stored"] == 2
-    assert timing["engine_start_s"] > 0 and timing["runs_s"] >= 0
-    again = campaign_mod.run_campaign(camp, str(tmp_path / "out"), stream=io.StringIO())
-    assert again["ran"] == 0                             # nothing left: no runs phase
-    timing = yaml.safe_load((tmp_path / "out" / "provenance.yaml").read_text())["timing"]
-    assert timing == {"engine_start_s": None, "runs_s": None, "runs_stored": 0}
-
-
 def test_worker_worlds_freeze_the_workers_start_up_objects_once():
     """A worker's first graph run freezes what the process holds (gc.freeze: its full
     garbage collections then skip Dask's and the simulator's start-up objects); later runs
@@ -667,25 +630,6 @@ def test_worker_worlds_freeze_the_workers_start_up_objects_once():
         assert same and frozen_first > 0 and frozen_again == 0
     finally:
         gc.unfreeze()
-
-
-def test_version_check_drop_and_restore_change_the_list_in_place():
-    from distributed import versions
-    from patrolling_sim.campaign.forkserver import (drop_unused_version_checks,
-                                                    restore_version_checks)
-    packages = versions.optional_packages
-    before = list(packages)
-    dropped = drop_unused_version_checks()
-    try:
-        assert [p[0] for p in dropped] == ["pandas"]
-        assert versions.optional_packages is packages        # every reader sees the change
-        assert "pandas" not in versions.get_versions()["packages"]
-        assert drop_unused_version_checks() == []            # twice: nothing more to drop
-    finally:
-        restore_version_checks(dropped)
-    assert sorted(map(str, packages)) == sorted(map(str, before))
-    restore_version_checks([])                               # nothing to restore: no change
-    assert sorted(map(str, packages)) == sorted(map(str, before))
 
 
 def test_progress_lines_are_rate_limited_but_failures_and_the_end_always_show(monkeypatch):
@@ -784,7 +728,7 @@ def test_ros_campaign_runs_as_many_experiments_at_a_time_as_the_memory_holds():
     """ROS mode: half the cores by default, fewer when the largest run's memory estimate
     does not fit that many times; a --workers value is kept, with a warning."""
     from patrolling_sim.experiment import validation
-    from patrolling_sim.campaign.engine import ros_concurrency
+    from patrolling_sim.campaign.cluster import ros_concurrency
     small = {"map": "grid", "robots": 2, "processes": "shared", "nav": "spqrel_nav_lite"}
     big = dict(small, map="broughton", robots=12)
     need = validation.memory_estimate_mb(12, "shared",

@@ -10,7 +10,8 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
+from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
+from patrolling_sim.graphsim.config import GraphSimConfig  # noqa: E402
 
 #: (alg, map, robots, seed) -> sha256 of _visits.csv + _idleness.csv, recorded before the
 #: speed-up (commit "test: DTA fingerprints")

@@ -1,23 +1,21 @@
-"""Issue 16: patrol-graph extraction (extract.py), coverage (coverage.py), the graph_tool
+"""Patrol-graph extraction (extract.py), coverage (coverage.py), the graph_tool
 sub-commands init-map / extract / coverage, and a new floor plan from image to graph-mode run."""
 import os
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from patrolling_sim.common import paths
+from patrolling_sim.extraction.coverage import check_graph, coverage
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.extraction.extract import (ExtractionParams, extract_graph, init_map_yaml)
+from patrolling_sim.model.graph import PatrolGraph, load_graph
+from patrolling_sim.graphsim.simulator import GraphSimulator
+from patrolling_sim.graphsim.config import GraphSimConfig
+from spqrel_nav_lite.mapio import OccupancyMap, load_map
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-
-from patrolling_sim.common import paths  # noqa: E402
-from patrolling_sim.extraction.coverage import check_graph, coverage  # noqa: E402
-from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
-from patrolling_sim.extraction.extract import ExtractionParams, extract_graph, init_map_yaml  # noqa: E402
-from patrolling_sim.model.graph import PatrolGraph, load_graph  # noqa: E402
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
-from spqrel_nav_lite.mapio import OccupancyMap, load_map  # noqa: E402
-
 TOOL = os.path.join(ROOT, "scripts", "graph_tool.py")
 
 

@@ -13,7 +13,8 @@ import pytest
 
 import fidelity_common as fc
 from patrolling_sim.algorithms import StrategyContext, create, names
-from patrolling_sim.algorithms.base import INT16_CAP, Driver
+from patrolling_sim.algorithms.base import Driver
+from patrolling_sim.common.protocol import INT16_CAP
 from patrolling_sim.algorithms.dta_common import path_hops
 from patrolling_sim.algorithms.dtap import int16_payload
 from patrolling_sim.algorithms.gbs import gbs_params

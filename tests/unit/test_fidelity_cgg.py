@@ -15,7 +15,7 @@ from patrolling_sim.common import paths
 from patrolling_sim.algorithms import StrategyContext, create
 from patrolling_sim.algorithms.cgg import original_cyclic_route
 from patrolling_sim.planning.cyclic_route import (RouteConstructionError, _Web, cyclic_route,
-                                         longest_path, outbound_walk)
+                                                  longest_path, outbound_walk)
 from patrolling_sim.model.graph import PatrolGraph, parse_graph
 from patrolling_sim.planning.routes import route_cost
 

@@ -1,13 +1,12 @@
 """Patrol graph loader: shipped graphs, coordinates, round trip, malformed input."""
-import os
 
 import pytest
 
 from patrolling_sim.common import paths
 from patrolling_sim.common.errors import GraphFormatError
 from patrolling_sim.model.graph import (PatrolGraph, format_graph, graph_warnings, graphs_equal,
-                                  load_graph, parse_graph, printed_edge_count,
-                                  undirected_edge_count)
+                                        load_graph, parse_graph, printed_edge_count,
+                                        undirected_edge_count)
 from spqrel_nav_lite.mapio import load_map
 
 # the shipped maps (maps/README.md): V, E (distinct pairs), E* (as the original prints)

@@ -7,7 +7,9 @@ import pytest
 
 from patrolling_sim.algorithms import names
 from patrolling_sim.common.errors import PatrolInputError
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator, claim_prefix
+from patrolling_sim.graphsim.simulator import GraphSimulator
+from patrolling_sim.graphsim.config import GraphSimConfig
+from patrolling_sim.monitor.results import claim_prefix
 from patrolling_sim.monitor.results import parse_info_line
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))

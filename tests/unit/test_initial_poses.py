@@ -1,5 +1,4 @@
 """Start positions: table parsing, variants, computed spreads for N = 1..32 on every map."""
-import math
 
 import numpy as np
 import pytest

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from patrolling_sim.common import paths
-from patrolling_sim.common.errors import MapFormatError
+from spqrel_nav_lite.errors import MapFormatError
 from spqrel_nav_lite.mapio import FREE, OCCUPIED, UNKNOWN, load_map, read_image
 
 

@@ -66,7 +66,7 @@ def test_colour_scale(grid):
     assert spheres[3].color.g == pytest.approx(0.5)
     # all zero -> all green, no division by zero
     assert all(m.color.g == 1.0 for m in by_ns(build_marker_array(grid, [0.0] * grid.n),
-                                                "vertices"))
+                                               "vertices"))
     c = idleness_color(5.0, 0.0)
     assert (c.r, c.g) == (0.0, 1.0)
 

@@ -1,6 +1,5 @@
 """MonitorCore metrics (facts section 5) and the result-file formats against the original's."""
 import glob
-import math
 import os
 import re
 import statistics
@@ -9,7 +8,7 @@ import pytest
 
 from patrolling_sim.monitor.core import MonitorCore, population_sd
 from patrolling_sim.monitor.results import (INFO_FIELDS, ResultWriter, RunInfo, default_prefix,
-                                    info_line, parse_info_line, results_block)
+                                            parse_info_line)
 
 #: files written by the original C++ monitor (copied from the reference material)
 ORIG = os.path.join(os.path.dirname(__file__), "data", "original_output_example")

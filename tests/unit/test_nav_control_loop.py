@@ -10,8 +10,9 @@ rospy = pytest.importorskip("rospy", reason="rospy (Debian: python3-rospy) missi
 from move_base_msgs.msg import MoveBaseGoal  # noqa: E402
 
 from spqrel_nav_lite import move_base_goal  # noqa: E402
-from spqrel_nav_lite.move_base_goal import (ControlLoop, GoalExecution, NextCycle,  # noqa: E402
-                                            PlanDone, Rate, SleepUntil)
+from spqrel_nav_lite.control_loop import ControlLoop  # noqa: E402
+from spqrel_nav_lite.goal_waits import NextCycle, PlanDone, Rate, SleepUntil  # noqa: E402
+from spqrel_nav_lite.move_base_goal import GoalExecution  # noqa: E402
 
 
 class Clock:
@@ -257,7 +258,6 @@ def test_execute_passes_a_shutdown_during_a_wait_to_the_goal(monkeypatch):
     monkeypatch.setattr(SleepUntil, "block", block)
     ex.execute(MoveBaseGoal())
     assert ex.server.aborted == ["navigation shutting down"]
-
 
 
 class Planner(GoalExecution):

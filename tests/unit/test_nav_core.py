@@ -164,7 +164,8 @@ def test_planner_on_shipped_map_all_vertices_reachable():
 
 # -- controller -----------------------------------------------------------------------------
 def straight_path(x0=0.0, x1=10.0):
-    return np.column_stack([np.arange(x0, x1 + 1e-9, 0.1), np.zeros(int(round((x1 - x0) / 0.1)) + 1)])
+    return np.column_stack([np.arange(x0, x1 + 1e-9, 0.1),
+                            np.zeros(int(round((x1 - x0) / 0.1)) + 1)])
 
 
 def simulate(path, pose, points_world=np.zeros((0, 2)), steps=400, dt=0.1, p=None):

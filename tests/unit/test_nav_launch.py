@@ -7,7 +7,7 @@ import subprocess
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-LAUNCH = os.path.join(ROOT, "launch", "robot.launch")
+LAUNCH = os.path.join(ROOT, "src", "patrolling_sim", "launch", "robot.launch")
 
 pytestmark = pytest.mark.skipif(shutil.which("roslaunch", path="/usr/bin") is None,
                                 reason="roslaunch not installed")

@@ -125,7 +125,7 @@ def test_the_abstract_world_has_no_plan_store(tmp_path, monkeypatch):
 def test_robot_launch_without_nodes_sets_the_same_parameters():
     env = dict(os.environ, ROS_PACKAGE_PATH=os.path.join(ROOT, "src"),
                PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
-    path = os.path.join(ROOT, "launch", "robot.launch")
+    path = os.path.join(ROOT, "src", "patrolling_sim", "launch", "robot.launch")
 
     def query(option, *args):
         p = subprocess.run(["/usr/bin/roslaunch", option, path, "robotname:=robot_2",

@@ -99,7 +99,8 @@ def used_keys(pkg):
             if key is None:
                 unknown.append(f"{os.path.relpath(path, ROOT)}: import {mod}")
                 continue
-            used["test" if is_test else "run"].setdefault(key, []).append(os.path.relpath(path, ROOT))
+            used["test" if is_test else "run"].setdefault(key, []).append(
+                os.path.relpath(path, ROOT))
     for dirpath, _, files in os.walk(base):
         for f in sorted(files):
             if not f.endswith((".cpp", ".h", ".hpp")):
@@ -166,7 +167,8 @@ def test_readme_noetic_section_installs_every_dependency():
         for key in sorted(set().union(*package_xml(pkg).values())):
             if key in PACKAGES or key == "catkin":   # the workspace itself; catkin: ros-base
                 continue
-            apt = key if key.startswith(("python3-", "lib")) else "ros-noetic-" + key.replace("_", "-")
+            apt = (key if key.startswith(("python3-", "lib"))
+                   else "ros-noetic-" + key.replace("_", "-"))
             if apt not in words:
                 missing.append(f"{apt} (src/{pkg}/package.xml: {key})")
     assert not missing, "README.md ROS Noetic section does not install: " + ", ".join(missing)

@@ -1,5 +1,6 @@
 """The /results numbers are named once (patrolling_sim.common.protocol) and agree with the
 protocol document and with every module that uses them."""
+import ast
 import os
 import re
 
@@ -26,8 +27,21 @@ def test_documented_types_are_named():
 
 
 def test_one_definition():
-    for name in ("MSG_INIT", "MSG_TARGET_REACHED", "MSG_DTA_IDLENESS", "INT16_CAP",
-                 "INT16_MAX", "MSG_SSI_BID"):
-        assert getattr(base, name) is getattr(protocol, name)
+    """Message numbers are integer literals in common/protocol.py only: every other module
+    names them from there."""
+    pkg = os.path.join(ROOT, "src", "patrolling_sim", "src", "patrolling_sim")
+    elsewhere = []
+    for d, _, files in os.walk(pkg):
+        for f in files:
+            path = os.path.join(d, f)
+            if not f.endswith(".py") or path.endswith(os.path.join("common", "protocol.py")):
+                continue
+            for node in ast.walk(ast.parse(open(path, encoding="utf-8").read())):
+                if (isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant)
+                        and any(isinstance(t, ast.Name) and t.id.startswith("MSG_")
+                                for t in node.targets)):
+                    elsewhere.append(f"{path}:{node.lineno}")
+    assert not elsewhere, elsewhere
+    assert base.MSG_FAILURE is protocol.MSG_ROBOT_STATUS
     assert watch.GO is protocol.GO and watch.END is protocol.END
     assert protocol.INT16_CAP < protocol.INT16_MAX == 2 ** 15 - 1

@@ -6,7 +6,8 @@ import sys
 import pytest
 
 from patrolling_sim import algorithms
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
+from patrolling_sim.graphsim.simulator import GraphSimulator
+from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.runner.config import ExperimentConfig
 
 NEW_MODULE = '''

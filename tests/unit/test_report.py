@@ -106,11 +106,13 @@ def check_summary(summary_csv, expected):
         exp = expected[key]
         assert int(row["runs"]) == exp["runs"], key
         for short, col in names.items():
-            assert float(row[col + "_mean"]) == pytest.approx(exp[short], rel=1e-5, abs=1e-4), (key, col)
+            assert float(row[col + "_mean"]) == pytest.approx(exp[short], rel=1e-5,
+                                                              abs=1e-4), (key, col)
             if exp[short + "_sd"] is None:
                 assert row[col + "_sd"] == "", (key, col)
             else:
-                assert float(row[col + "_sd"]) == pytest.approx(exp[short + "_sd"], rel=1e-5, abs=1e-4), (key, col)
+                assert float(row[col + "_sd"]) == pytest.approx(exp[short + "_sd"], rel=1e-5,
+                                                                abs=1e-4), (key, col)
 
 
 def check_outputs(out, n_runs):

@@ -10,15 +10,14 @@ import sys
 import pytest
 import yaml
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-from patrolling_sim.monitor import run_status as rs  # noqa: E402
+from patrolling_sim.monitor import run_status as rs
 from patrolling_sim.experiment import validation
-from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
-from patrolling_sim.monitor.core import MonitorCore  # noqa: E402
-from patrolling_sim.monitor.results import ResultWriter, RunInfo, parse_info_line  # noqa: E402
-from patrolling_sim.runner.supervisor import RoslaunchLog, describe_node  # noqa: E402
+from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.monitor.core import MonitorCore
+from patrolling_sim.monitor.results import ResultWriter, RunInfo, parse_info_line
+from patrolling_sim.runner.roslaunch_log import RoslaunchLog, describe_node
 
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 START = os.path.join(ROOT, "scripts", "start_experiments.py")
 GRAPH_SIM = os.path.join(ROOT, "scripts", "graph_sim.py")
 REPORT = os.path.join(ROOT, "scripts", "report.py")
@@ -26,9 +25,11 @@ REPORT = os.path.join(ROOT, "scripts", "report.py")
 # roslaunch's own words (roslaunch/pmon.py and nodeprocess.py, Debian's ros-roslaunch 1.15)
 ROSLAUNCH_OUT = """\
 process[robot_0/robot_nav-4]: started with pid [1204]
-[robot_0/robot_nav-4] process has died [pid 1204, exit code -9, cmd /ws/robot_nav __name:=robot_nav __log:=/L/robot_0-robot_nav-4.log].
+[robot_0/robot_nav-4] process has died [pid 1204, exit code -9, cmd /ws/robot_nav \
+__name:=robot_nav __log:=/L/robot_0-robot_nav-4.log].
 log file: /L/robot_0-robot_nav-4*.log
-\x1b[31m================================================================================REQUIRED process [stage2d-2] has died!
+\x1b[31m================================================================================\
+REQUIRED process [stage2d-2] has died!
 process has died [pid 1190, exit code 134, cmd /ws/stage2d_node __name:=stage2d].
 log file: /L/stage2d-2*.log
 Initiating shutdown!
@@ -251,7 +252,8 @@ def test_user_map_results_never_collide_with_a_shipped_map(tmp_path):
                         "2", "--alg", "CR", "--results-dir", str(tmp_path / "r"), "--dry-run"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
-    assert os.path.isdir(tmp_path / "r" / f"{validation.result_map_name(str(mine / 'grid.yaml'))}_2")
+    assert os.path.isdir(
+        tmp_path / "r" / f"{validation.result_map_name(str(mine / 'grid.yaml'))}_2")
 
 
 def test_a_long_silence_is_named_when_the_run_did_not_fail():

@@ -1,7 +1,6 @@
 """Experiment runner: configuration parsing and validation, batches, launch generation,
 process-tree bookkeeping. No ROS master needed."""
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -192,7 +191,7 @@ def test_cli_dry_run_writes_launch_and_config(tmp_path):
 
 
 def test_patrol_agents_robot_ids():
-    from patrolling_sim.ros.agent import AgentError, parse_ids
+    from patrolling_sim.ros.agent_params import AgentError, parse_ids
     assert parse_ids(["0-3"]) == [0, 1, 2, 3]
     assert parse_ids(["5", "0-1", "1"]) == [0, 1, 5]
     for bad in (["x"], ["3-1"], ["-2"]):
@@ -212,7 +211,8 @@ def test_ros_agents_get_graph_modes_seeds(processes, tmp_path, monkeypatch):
     (agent_core.agent_seed), so its strategy draws the same numbers (RAND's walk, the start
     delay) in both modes."""
     from patrolling_sim.graphsim import simulator as graph_sim
-    from patrolling_sim.agent.core import agent_seed
+    from patrolling_sim.graphsim.config import GraphSimConfig
+    from patrolling_sim.agent.factory import agent_seed
     cfg = base(results_dir=str(tmp_path), processes=processes, seed=3).validate()
     root = ET.fromstring(generate_launch(cfg, cfg.start_positions(), str(tmp_path / "p")))
     if processes == "shared":
@@ -226,6 +226,6 @@ def test_ros_agents_get_graph_modes_seeds(processes, tmp_path, monkeypatch):
     real = graph_sim.build_agent
     monkeypatch.setattr(graph_sim, "build_agent",
                         lambda *a, **kw: seen.append(kw["seed"]) or real(*a, **kw))
-    graph_sim.GraphSimulator(graph_sim.GraphSimConfig(map="grid", robots=4, alg="RAND", seed=3,
-                                                      duration=5.0)).run(write=False)
+    graph_sim.GraphSimulator(GraphSimConfig(map="grid", robots=4, alg="RAND", seed=3,
+                                            duration=5.0)).run(write=False)
     assert ros == seen == [agent_seed(3, i) for i in range(4)] == [3001, 3002, 3003, 3004]

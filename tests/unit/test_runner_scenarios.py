@@ -140,7 +140,7 @@ def test_summary_line_reports_failures_and_messages(tmp_path):
     write_scenario(prefix, "bernoulli:p=0.2", "1@80+100,2@150", parse_attrition(
         "1@80+100,2@150", 3), [[1, 80.04, 180.06], [2, 150.0, None]],
         {0: {"sent": 60, "delivered": 45, "lost": 15}, 1: {"sent": 40, "delivered": 35,
-                                                          "lost": 5}}, mode="ros")
+                                                           "lost": 5}}, mode="ros")
     assert scenario_summary(prefix) == (
         "scenario: comm bernoulli:p=0.2; failures robot 1 at 80.04 s (back at 180.06 s), "
         "robot 2 at 150 s; messages sent 100, delivered 80, lost 20 (20.0 %)")

@@ -8,7 +8,8 @@ import pytest
 from patrolling_sim.algorithms import REGISTRY
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.graphsim.cli import main
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator
+from patrolling_sim.graphsim.simulator import GraphSimulator
+from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.monitor.metrics import read_visits
 from patrolling_sim.monitor.core import MonitorCore
 from patrolling_sim.monitor.run_status import read_run_yaml
@@ -268,7 +269,7 @@ def test_scenario_metrics_give_each_failure_its_impact(tmp_path):
                  attrition="2@1000,4@1000,1@2000", comm="bernoulli:p=0.1")
     m = scenario_metrics(sim.prefix, sim.g.n, 3000.0)
     assert [(f["t_fail"], f["robots"]) for f in m["failures"]] == [(1000.0, [2, 4]),
-                                                                  (2000.0, [1])]
+                                                                   (2000.0, [1])]
     assert all(f["after"] > f["before"] for f in m["failures"])
     assert m["messages"]["sent"] == m["messages"]["delivered"] + m["messages"]["lost"] > 0
     cols = scenario_columns(sim.prefix)

@@ -1,25 +1,20 @@
-"""Issue 16: --initpos optimised (startpos.py) -- start vertices chosen for the algorithm."""
-import os
-import sys
-
+"""--initpos optimised (startpos.py) -- start vertices chosen for the algorithm."""
 import numpy as np
 import pytest
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
-
-from patrolling_sim.common import paths  # noqa: E402
-from patrolling_sim.model.graph import PatrolGraph, parse_graph  # noqa: E402
-from patrolling_sim.graphsim.simulator import GraphSimConfig, GraphSimulator  # noqa: E402
-from patrolling_sim.planning.routes import route_cost  # noqa: E402
-from patrolling_sim.runner.config import ExperimentConfig  # noqa: E402
-from patrolling_sim.startpos.optimised import (kcentre_start_vertices, optimised_start_vertices,  # noqa: E402
-                                     probe_route, strategy_kind)
+from patrolling_sim.common import paths
+from patrolling_sim.model.graph import PatrolGraph, parse_graph
+from patrolling_sim.graphsim.simulator import GraphSimulator
+from patrolling_sim.graphsim.config import GraphSimConfig
+from patrolling_sim.planning.routes import route_cost
+from patrolling_sim.runner.config import ExperimentConfig
+from patrolling_sim.startpos.optimised import (kcentre_start_vertices, optimised_start_vertices,
+                                               probe_route, strategy_kind)
 
 
 def worst_idleness(alg, n, initpos, duration=1500.0):
-    """Worst idleness in the issue's world: straight-line travel at 1 m/s, no goal wait,
-    no interference (the abstract world of the original's reference runs)."""
+    """Worst idleness in the abstract world of the original's reference runs: straight-line
+    travel at 1 m/s, no goal wait, no interference."""
     cfg = GraphSimConfig(map="grid", robots=n, alg=alg, duration=duration, seed=1,
                          initpos=initpos, gwait=0.0, speed=1.0, travel="euclidean",
                          interference=False)

@@ -40,7 +40,8 @@ class GridGeometry:
     def __init__(self, yaml_path):
         with open(yaml_path) as f:
             meta = yaml.safe_load(f)
-        img = cv2.imread(os.path.join(os.path.dirname(yaml_path), meta["image"]), cv2.IMREAD_GRAYSCALE)
+        img = cv2.imread(os.path.join(os.path.dirname(yaml_path), meta["image"]),
+                         cv2.IMREAD_GRAYSCALE)
         occ = (255.0 - img) / 255.0 > meta["occupied_thresh"]
         self.occ = occ[::-1, :]  # row 0 = bottom
         self.res = meta["resolution"]
@@ -94,7 +95,8 @@ class Stage2DSimTest(unittest.TestCase):
     def setUpClass(cls):
         rospy.init_node("stage2d_sim_test")
         cls.geo = GridGeometry(rospy.get_param("/stage2d/map"))
-        cls.gt = [Latest(f"/robot_{i}/base_pose_ground_truth", Odometry, keep=True) for i in range(N)]
+        cls.gt = [Latest(f"/robot_{i}/base_pose_ground_truth", Odometry, keep=True)
+                  for i in range(N)]
         cls.odom = [Latest(f"/robot_{i}/odom", Odometry) for i in range(N)]
         cls.scan = [Latest(f"/robot_{i}/base_scan", LaserScan) for i in range(N)]
         cls.status = Latest("/stage2d/status", String)
@@ -278,7 +280,8 @@ class Stage2DSimTest(unittest.TestCase):
                 dd = math.hypot(o.pose.pose.position.x - m.pose.pose.position.x,
                                 o.pose.pose.position.y - m.pose.pose.position.y)
                 self.assertGreaterEqual(dd, 2 * RADIUS - 0.02)
-        self.assertGreater(self.status_json()["robot_contacts"], before, "robot contact not counted")
+        self.assertGreater(self.status_json()["robot_contacts"], before,
+                           "robot contact not counted")
 
     def test_06_laser_matches_walls(self):
         self.park_all()
@@ -338,7 +341,8 @@ class Stage2DSimTest(unittest.TestCase):
             g = self.fresh_gt(i)
             self.assertAlmostEqual(g.pose.pose.position.x, float(starts[3 * i]), delta=1e-3)
             self.assertAlmostEqual(g.pose.pose.position.y, float(starts[3 * i + 1]), delta=1e-3)
-            self.assertAlmostEqual(yaw_of(g.pose.pose.orientation), float(starts[3 * i + 2]), delta=1e-3)
+            self.assertAlmostEqual(yaw_of(g.pose.pose.orientation), float(starts[3 * i + 2]),
+                                   delta=1e-3)
 
     def test_09_snapshot(self):
         d = rospy.get_param("/stage2d/snapshot_dir")

@@ -79,5 +79,6 @@ class SyncTest(unittest.TestCase):
         self.assertEqual(st2["sync_waits"], st1["sync_waits"], f"still waiting: {st1} -> {st2}")
         self.assertGreater(st2["steps"] - st1["steps"], 20, f"not stepping: {st1} -> {st2}")
 
+
 if __name__ == "__main__":
     rostest.rosrun("patrol_stage2d", "stage2d_sync", SyncTest, sys.argv)

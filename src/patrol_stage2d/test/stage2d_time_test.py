@@ -89,8 +89,8 @@ class Stage2DTimeTest(unittest.TestCase):
         diff = (ra - rb)[ok]
         self.assertGreater(len(diff), 500)
         # difference of two independent N(0, s) draws has std s*sqrt(2)
-        self.assertAlmostEqual(float(np.std(diff)), noise * np.sqrt(2), delta=0.2 * noise * np.sqrt(2))
-
+        self.assertAlmostEqual(float(np.std(diff)), noise * np.sqrt(2),
+                               delta=0.2 * noise * np.sqrt(2))
 
     def test_laser_geometry(self):
         """Every 10th beam of robot 0 against an independent brute-force ray march over the
@@ -102,7 +102,8 @@ class Stage2DTimeTest(unittest.TestCase):
         import yaml
         with open(rospy.get_param("/stage2d/map")) as f:
             meta = yaml.safe_load(f)
-        img = cv2.imread(os.path.join(os.path.dirname(rospy.get_param("/stage2d/map")), meta["image"]),
+        img = cv2.imread(os.path.join(os.path.dirname(rospy.get_param("/stage2d/map")),
+                                      meta["image"]),
                          cv2.IMREAD_GRAYSCALE)
         occ = ((255.0 - img) / 255.0 > meta["occupied_thresh"])[::-1, :]
         res = meta["resolution"]

@@ -9,7 +9,6 @@ import rospy
 import rostest
 from geometry_msgs.msg import PoseArray
 
-from patrolling_sim.common import paths
 from patrolling_sim.model import map_bundle
 
 

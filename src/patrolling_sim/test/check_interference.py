@@ -7,7 +7,6 @@ last said it was. Robot 1 (the higher id) must then report [1,12], cancel its go
 the same goal about 3 s later, and not detect again within 10 s; robot 0's agent-less slot
 never reports. The agent keeps answering (its /positions keep flowing during the pause).
 """
-import math
 import sys
 import threading
 import time

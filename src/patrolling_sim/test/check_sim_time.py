@@ -4,7 +4,6 @@ agents' timers and the monitor's ~timeout run on sim time: the run ends by itsel
 TIMEOUT after ~timeout sim seconds, in much less wall time, and results.txt/info.csv report
 both durations."""
 import sys
-import time
 import unittest
 
 import rospy

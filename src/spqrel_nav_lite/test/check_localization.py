@@ -6,7 +6,8 @@ map->robot_0/odom composed with odom equals the ground truth, and that amcl_pose
 mode "amcl": sends move_base goals (~goals "x y; x y") so the robot drives; checks that
 amcl_pose converges (final error < ~max_err_xy / ~max_err_a; after ~converge_updates
 updates the error must have dropped below ~converge_err; from then on the mean error
-< ~mean_err_xy and the maximum < ~max_err_after), that particlecloud is published and global_localization is served.
+< ~mean_err_xy and the maximum < ~max_err_after), that particlecloud is published and
+global_localization is served.
 """
 import math
 import sys
@@ -154,7 +155,8 @@ class LocalizationTest(unittest.TestCase):
         mean_xy = sum(e[0] for e in half) / len(half)
         final = errs[-1]
         msg = (f"{len(errs)} updates; first error {first[0]:.2f} m {first[1]:.2f} rad; final "
-               f"{final[0]:.3f} m {final[1]:.3f} rad; converged after {skip} updates; then mean {mean_xy:.3f} m; "
+               f"{final[0]:.3f} m {final[1]:.3f} rad; converged after {skip} updates; "
+               f"then mean {mean_xy:.3f} m; "
                f"max {max(e[0] for e in half):.3f} m; sim time driven "
                f"{(self.est[-1][0] - self.est[0][0]) * 1e-9:.0f} s")
         rospy.loginfo(msg)

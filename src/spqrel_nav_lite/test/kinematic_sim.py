@@ -55,7 +55,8 @@ class Sim:
         err = [float(t) for t in str(rospy.get_param("~odom_error", "0.01 0.01 0.05")).split()]
         rng = np.random.default_rng(int(rospy.get_param("~seed", 0)))
         n = len(self.poses)
-        self.bias = np.column_stack([rng.uniform(-err[0], err[0], n), rng.uniform(-err[1], err[1], n),
+        self.bias = np.column_stack([rng.uniform(-err[0], err[0], n),
+                                     rng.uniform(-err[1], err[1], n),
                                      rng.uniform(-err[2], err[2], n)])
         self.odom = np.zeros((n, 3))
         self.cmd = np.zeros((n, 2))

@@ -16,11 +16,6 @@ import unittest
 import actionlib
 import rospy
 import rostest
-
-# xy_goal_tolerance 0.4 m, plus the motion the robot makes after move_base sees it inside the
-# tolerance: one simulator step (0.1 s) at up to 1 m/s before the stop takes effect, then
-# braking. Ground truth is read once the robot has come to rest.
-REACHED = 0.4 + 0.1
 from actionlib_msgs.msg import GoalStatus
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from geometry_msgs.msg import PoseStamped
@@ -30,6 +25,11 @@ from std_srvs.srv import Empty
 
 from spqrel_nav_lite.mapio import load_map
 from spqrel_nav_lite.planner import GlobalPlanner, path_length
+
+# xy_goal_tolerance 0.4 m, plus the motion the robot makes after move_base sees it inside the
+# tolerance: one simulator step (0.1 s) at up to 1 m/s before the stop takes effect, then
+# braking. Ground truth is read once the robot has come to rest.
+REACHED = 0.4 + 0.1
 
 
 class NavGoals(unittest.TestCase):

@@ -50,11 +50,11 @@ class Amcl:
         self.base_frame = strip_slash(self._p("base_frame_id", ns + "base_link", str))
         min_p = self._p("min_particles", 100, int, **POS)
         max_p = self._p("max_particles", 500, int, check=lambda v: v >= min_p,
-                      what="must be >= ~min_particles")
+                        what="must be >= ~min_particles")
         alphas = tuple(self._p(f"odom_alpha{i}", d, **NONNEG)
                        for i, d in zip(range(1, 5), (0.2, 0.2, 0.8, 0.2)))
         self.max_beams = self._p("laser_max_beams", 30, int, check=lambda v: v >= 2,
-                               what="must be >= 2")
+                                 what="must be >= 2")
         self.update_min_d = self._p("update_min_d", 0.2, **NONNEG)
         self.update_min_a = self._p("update_min_a", 0.5, **NONNEG)
         self.resample_interval = self._p("resample_interval", 1, int, **POS)
@@ -72,13 +72,14 @@ class Amcl:
             LikelihoodField(omap, max_dist)
         self.pf = ParticleFilter(
             self.field, min_p, max_p, alphas,
-            z_hit=self._p("laser_z_hit", 0.5, **NONNEG), z_rand=self._p("laser_z_rand", 0.5, **NONNEG),
+            z_hit=self._p("laser_z_hit", 0.5, **NONNEG),
+            z_rand=self._p("laser_z_rand", 0.5, **NONNEG),
             sigma_hit=self._p("laser_sigma_hit", 0.2, **POS),
             kld_err=self._p("kld_err", 0.05, **POS), kld_z=self._p("kld_z", 0.99, **POS),
             laser_x=self._p("laser_x", 0.15),
             model=self._p("odom_model_type", "diff", str,
-                        check=lambda v: v in ("diff", "diff-corrected"),
-                        what="must be diff or diff-corrected"),
+                          check=lambda v: v in ("diff", "diff-corrected"),
+                          what="must be diff or diff-corrected"),
             rng=np.random.default_rng(None if seed < 0 else seed))
         rospy.loginfo("amcl: likelihood field %dx%d in %.2f s", self.field.w, self.field.h,
                       time.time() - t0)

@@ -69,6 +69,34 @@ def front_clearance(points_robot, v, w, radius, horizon, step=0.1):
     return max(0.0, abs(s[hit[0]]) - step)
 
 
+def closest_index(path, x, y, start_index):
+    """Index of the point of ``path`` ((N, 2) array) closest to (x, y), searched among the 200
+    points from ``start_index`` (clamped to the path) on: progress along the path is monotone,
+    and a path that passes near itself again is not cut short."""
+    lo = min(max(0, start_index), len(path) - 1)
+    win = path[lo:lo + 200]
+    d = np.hypot(win[:, 0] - x, win[:, 1] - y)
+    return lo + int(np.argmin(d))
+
+
+def lookahead_point(path, idx, distance):
+    """The first point of ``path`` ((N, 2) array) at least ``distance`` metres of arc length
+    beyond index ``idx``, or its last point. The arc length is summed over a prefix of the
+    path grown until it reaches ``distance``, not over the whole remaining path."""
+    n = 32
+    while True:
+        part = path[idx:idx + n + 1]
+        acc = np.zeros(len(part))
+        if len(part) > 1:
+            d = np.diff(part, axis=0)
+            np.cumsum(np.hypot(d[:, 0], d[:, 1]), out=acc[1:])
+        if acc[-1] >= distance or idx + n + 1 >= len(path):
+            break
+        n *= 4
+    k = int(np.searchsorted(acc, distance))
+    return path[min(idx + k, len(path) - 1)]
+
+
 def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
                     dynamic_points=None):
     """One control step.
@@ -84,6 +112,10 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
         dynamic_points: the subset the map does not explain (robot frame), possibly moving
             (e.g. another robot driving towards this one): braking for them assumes they may
             close half of the gap, and the stop distance grows with the speed (latency).
+
+    Returns:
+        Command: ``done`` within the goal tolerance, ``blocked`` when the robot cannot
+        advance, ``index`` the closest path point.
     """
     path = np.asarray(path, dtype=float)
     x, y, th = pose
@@ -91,27 +123,8 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
     dist_goal = math.hypot(goal[0] - x, goal[1] - y)
     if dist_goal <= p.xy_goal_tolerance:
         return Command(0.0, 0.0, done=True, index=len(path) - 1)
-    # closest point, searched forward over a window (paths may loop near themselves)
-    lo = min(max(0, start_index), len(path) - 1)
-    win = path[lo:lo + 200]
-    d = np.hypot(win[:, 0] - x, win[:, 1] - y)
-    idx = lo + int(np.argmin(d))
-    # look-ahead point
-    L = p.lookahead + p.lookahead_gain * max(0.0, v_now)
-    # arc length along the path from idx, over a prefix just long enough to reach L (the
-    # whole remaining path made this the controller's largest cost on long paths)
-    n = 32
-    while True:
-        part = path[idx:idx + n + 1]
-        acc = np.zeros(len(part))
-        if len(part) > 1:
-            d = np.diff(part, axis=0)
-            np.cumsum(np.hypot(d[:, 0], d[:, 1]), out=acc[1:])
-        if acc[-1] >= L or idx + n + 1 >= len(path):
-            break
-        n *= 4
-    k = int(np.searchsorted(acc, L))
-    target = path[min(idx + k, len(path) - 1)]
+    idx = closest_index(path, x, y, start_index)
+    target = lookahead_point(path, idx, p.lookahead + p.lookahead_gain * max(0.0, v_now))
     dx, dy = target[0] - x, target[1] - y
     c, s = math.cos(th), math.sin(th)
     tx, ty = c * dx + s * dy, -s * dx + c * dy
@@ -120,24 +133,50 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
     pts = np.asarray(points_robot, dtype=float).reshape(-1, 2)
     r_safe = p.robot_radius + p.safety_margin
     if abs(alpha) > p.rotate_in_place_angle:
-        # turn on the spot; check that nothing is inside the footprint while rotating
-        w_t = math.copysign(max(p.min_in_place_rotational_vel,
-                                min(p.max_rot_vel, 1.5 * abs(alpha))), alpha)
-        v_cmd = _limit(0.0, v_now, 4.0 * p.acc_lim_x, dt)
-        if v_cmd > 0.0:     # still rolling forward: stop at once if anything is close ahead
-            stop = 0.1 + 0.3 * v_now
-            if front_clearance(pts, v_now, w_now, r_safe, max(0.5, 2 * stop)) <= stop:
-                v_cmd = 0.0
-        w_cmd = _limit(w_t, w_now, p.acc_lim_th, dt)
-        return Command(v_cmd, w_cmd, index=idx)
+        return _turn_on_the_spot(alpha, v_now, w_now, pts, r_safe, dt, p, idx)
     curvature = 2.0 * math.sin(alpha) / ld
-    # speed targets: path curvature, goal approach, obstacles
+    v_t = _path_speed(alpha, curvature, dist_goal, p)
+    horizon = max(0.5, v_t * v_t / (2.0 * p.acc_lim_x) + p.slowdown_distance)
+    v_t, blocked = _obstacle_speed(pts, v_t, curvature, r_safe, horizon, p)
+    if dynamic_points is not None and len(dynamic_points) and not blocked:
+        v_t, blocked = _moving_obstacle_speed(dynamic_points, v_t, v_now, curvature, r_safe,
+                                              horizon, p)
+    return _arc_command(v_t, blocked, alpha, curvature, v_now, w_now, dt, p, idx)
+
+
+def _turn_on_the_spot(alpha, v_now, w_now, pts, r_safe, dt, p, idx):
+    """Command turning towards the heading error ``alpha`` (rad) on the spot: the forward
+    speed decelerates at four times ``acc_lim_x``, and drops to 0 at once if a laser point
+    of ``pts`` (robot frame) is within the stop distance along the current arc of a disc of
+    radius ``r_safe``; the rotation respects ``acc_lim_th``. ``index``: ``idx``."""
+    w_t = math.copysign(max(p.min_in_place_rotational_vel,
+                            min(p.max_rot_vel, 1.5 * abs(alpha))), alpha)
+    v_cmd = _limit(0.0, v_now, 4.0 * p.acc_lim_x, dt)
+    if v_cmd > 0.0:     # still rolling forward: stop at once if anything is close ahead
+        stop = 0.1 + 0.3 * v_now
+        if front_clearance(pts, v_now, w_now, r_safe, max(0.5, 2 * stop)) <= stop:
+            v_cmd = 0.0
+    w_cmd = _limit(w_t, w_now, p.acc_lim_th, dt)
+    return Command(v_cmd, w_cmd, index=idx)
+
+
+def _path_speed(alpha, curvature, dist_goal, p):
+    """Speed target (m/s) set by the path alone: slower the larger the heading error
+    ``alpha``, able to stop at the goal ``dist_goal`` metres away, and within ``max_rot_vel``
+    on an arc of ``curvature`` (1/m)."""
     v_t = p.max_vel_x * max(0.2, math.cos(alpha))
     v_t = min(v_t, math.sqrt(2.0 * p.acc_lim_x * max(0.0, dist_goal - 0.5 * p.xy_goal_tolerance))
               + p.min_vel_x)
     if abs(curvature) > 1e-6:
         v_t = min(v_t, p.max_rot_vel / abs(curvature))
-    horizon = max(0.5, v_t * v_t / (2.0 * p.acc_lim_x) + p.slowdown_distance)
+    return v_t
+
+
+def _obstacle_speed(pts, v_t, curvature, r_safe, horizon, p):
+    """(speed target, blocked) for the speed target ``v_t`` with the laser points ``pts``
+    (robot frame) on the arc of ``curvature`` within ``horizon`` metres: lowered so that the
+    robot can stop before the first point a disc of radius ``r_safe`` would touch, and slowed
+    near it; (0, True) when that point is within 0.1 m."""
     free = front_clearance(pts, max(v_t, 0.05), max(v_t, 0.05) * curvature, r_safe, horizon)
     blocked = False
     if free < horizon:
@@ -148,21 +187,35 @@ def compute_command(pose, v_now, w_now, path, start_index, points_robot, dt, p,
         if free <= 0.1:
             blocked = True
             v_t = 0.0
-    if dynamic_points is not None and len(dynamic_points) and not blocked:
-        # a moving obstacle (another robot) may close the gap as fast as this robot does,
-        # during the reaction time of both: a wider disc along the arc (which catches it
-        # before an arc that bends away has passed it) and twice the reaction distance.
-        # With the disc alone and one reaction distance, two robots meeting head-on in a
-        # corridor stopped 1-6 cm apart and touched after one late control cycle.
-        dyn = front_clearance(np.asarray(dynamic_points, dtype=float).reshape(-1, 2),
-                              max(v_t, 0.05), max(v_t, 0.05) * curvature,
-                              r_safe + p.dynamic_margin, horizon)
-        stop_at = 0.1 + 2.0 * p.reaction_time * max(0.0, v_now)
-        if dyn < horizon:
-            v_t = min(v_t, 0.5 * math.sqrt(2.0 * p.acc_lim_x * max(0.0, dyn - stop_at)))
-            if dyn <= stop_at:
-                blocked = True
-                v_t = 0.0
+    return v_t, blocked
+
+
+def _moving_obstacle_speed(dynamic_points, v_t, v_now, curvature, r_safe, horizon, p):
+    """(speed target, blocked) for the speed target ``v_t`` with the points the map does not
+    explain (robot frame), which may move towards the robot (another robot) and close the gap
+    as fast as it does during the reaction time of both: the arc is checked with a disc
+    ``dynamic_margin`` wider than ``r_safe`` (which catches the point before an arc that bends
+    away has passed it), the robot keeps twice the reaction distance and takes half the
+    stopping speed; (0, True) when the point is within that distance."""
+    dyn = front_clearance(np.asarray(dynamic_points, dtype=float).reshape(-1, 2),
+                          max(v_t, 0.05), max(v_t, 0.05) * curvature,
+                          r_safe + p.dynamic_margin, horizon)
+    stop_at = 0.1 + 2.0 * p.reaction_time * max(0.0, v_now)
+    blocked = False
+    if dyn < horizon:
+        v_t = min(v_t, 0.5 * math.sqrt(2.0 * p.acc_lim_x * max(0.0, dyn - stop_at)))
+        if dyn <= stop_at:
+            blocked = True
+            v_t = 0.0
+    return v_t, blocked
+
+
+def _arc_command(v_t, blocked, alpha, curvature, v_now, w_now, dt, p, idx):
+    """Command following the arc of ``curvature`` at the speed target ``v_t`` within the
+    acceleration limits (an emergency stop, ``blocked``, ignores the deceleration limit; a
+    robot starting from below ``min_vel_x`` gets at least that speed). Stopped, it turns
+    towards the heading error ``alpha`` unless blocked; when the angular acceleration limit
+    bites, the speed drops to stay on the arc."""
     v_t = max(0.0, v_t)
     if blocked:
         v_cmd = 0.0     # emergency stop ignores the deceleration limit

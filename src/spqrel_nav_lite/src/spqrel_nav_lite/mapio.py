@@ -87,7 +87,8 @@ class OccupancyMap:
             # pad so the map border counts as an obstacle
             padded = np.pad(free, 1, constant_values=0)
             d = cv2.distanceTransform(padded, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-            self._clearance = (np.maximum(d[1:-1, 1:-1] - 0.5, 0.0) * self.resolution).astype(np.float32)
+            self._clearance = (np.maximum(d[1:-1, 1:-1] - 0.5, 0.0)
+                               * self.resolution).astype(np.float32)
         return self._clearance
 
     def clearance_at(self, x, y):
@@ -156,7 +157,8 @@ def load_map(yaml_path):
         raise MapFormatError(f"{yaml_path}{where}: invalid YAML "
                              f"({getattr(e, 'problem', None) or e.__class__.__name__})") from None
     except (OSError, UnicodeDecodeError) as e:
-        raise MapFormatError(f"{yaml_path}: cannot read map yaml ({e.__class__.__name__})") from None
+        raise MapFormatError(
+            f"{yaml_path}: cannot read map yaml ({e.__class__.__name__})") from None
     if not isinstance(meta, dict):
         raise MapFormatError(f"{yaml_path}: map yaml must be a mapping with keys "
                              f"{', '.join(_REQUIRED)}")
@@ -204,9 +206,9 @@ def read_pgm8(image_path):
     every shipped map is) as a read-only (height, width) uint8 array, top row first; None for
     any other file, which :func:`read_image` leaves to OpenCV.
 
-    Why not OpenCV here too: importing ``cv2`` takes 0.2-0.5 s, which every graph-mode run
-    and every campaign worker paid only to read this trivial format (a fifth of a campaign's
-    start-up, docs/benchmarks/campaign.md). The result equals ``cv2.imread(path,
+    Why not OpenCV here too: importing ``cv2`` is slow, and every graph-mode run and every
+    campaign worker would pay for it only to read this trivial format (bench/notes/campaign.md,
+    "The campaign's start-up"). The result equals ``cv2.imread(path,
     cv2.IMREAD_UNCHANGED)`` (tests/unit/test_mapio.py compares them on every shipped map and
     on headers with comments)."""
     try:

@@ -3,26 +3,24 @@ recovery behaviours), mixed into :class:`spqrel_nav_lite.move_base_node.MoveBase
 provides the inputs (pose, laser, obstacle memory), the planner and the outputs.
 
 The control loop is written once, as a generator (:meth:`GoalExecution.goal_task`) that
-yields where it waits: for the next control cycle (:class:`NextCycle`: the first odometry a
-period newer than the one the last command used), for a moment of ROS time
-(:class:`SleepUntil`, the recoveries' and the pose wait's rate) or for a plan
-(:class:`PlanDone`). Two drivers run it:
+yields where it waits (:mod:`~spqrel_nav_lite.goal_waits`): for the next control cycle
+(:class:`~spqrel_nav_lite.goal_waits.NextCycle`: the first odometry a period newer than the
+one the last command used), for a moment of ROS time
+(:class:`~spqrel_nav_lite.goal_waits.SleepUntil`, the recoveries' and the pose wait's rate) or
+for a plan (:class:`~spqrel_nav_lite.goal_waits.PlanDone`). Two drivers run it:
 
 - :meth:`GoalExecution.execute`, actionlib's execute callback, blocks its thread at every
   wait and makes its plans itself (a thread per robot: the standalone ``move_base`` and
   ``robot_nav``);
-- :class:`ControlLoop` runs the goals of many robots of a ``nav_host`` in one thread
-  (``~control_threads`` of them, default 1), resuming each robot's generator when its wait is
-  over; plans that may search run in a planning thread beside it. A thread per robot cost a
-  process hosting 16 robots tens of thousands of thread switches per second, and the CPU
-  they take (docs/navigation.md, "Threads"; docs/benchmarks/runner.md, "Fewer threads").
+- :class:`~spqrel_nav_lite.control_loop.ControlLoop` runs the goals of many robots of a
+  ``nav_host`` in one thread (``~control_threads`` of them, default 1), resuming each robot's
+  generator when its wait is over; plans that may search run in a planning thread beside it
+  (docs/navigation.md, "Threads").
 
 Both run the same code on the same inputs; only who waits, and which thread makes the plans
 that may search, differ.
 """
-import concurrent.futures
 import math
-import threading
 
 import numpy as np
 import rospy
@@ -30,6 +28,7 @@ from move_base_msgs.msg import MoveBaseFeedback, MoveBaseResult
 
 from spqrel_nav_lite.controller import compute_command
 from spqrel_nav_lite.geometry import compose
+from spqrel_nav_lite.goal_waits import NextCycle, PlanDone, Rate, throw_into
 from spqrel_nav_lite.planner import PlanningError, path_blocked, path_length
 from spqrel_nav_lite.ros_util import fill_pose, strip_slash
 
@@ -38,70 +37,50 @@ class Aborted(Exception):
     pass
 
 
-class NextCycle:
-    """Wait for the next control cycle: odometry at least ~``period`` newer than
-    ``used_stamp`` (the odometry the last command was computed from), or ``deadline`` (ROS
-    time) if odometry stops (see :meth:`MoveBase.wait_cycle`)."""
-    __slots__ = ("period", "used_stamp", "deadline")
+class GoalProgress:
+    """The progress of one goal, by which :meth:`GoalExecution.run_goal` decides when the
+    robot is stuck: the least remaining cost seen and when (``best_remaining``,
+    ``best_time``), since when the robot has been blocked (``blocked_since``, None if it is
+    not) and by what (``blocked_by``, for the log), the recoveries made and the time of the
+    last plan (``last_plan``). Starts with the current ROS time as the last plan's and the
+    best's."""
 
-    def __init__(self, period, used_stamp):
-        self.period = period
-        self.used_stamp = used_stamp
-        self.deadline = rospy.get_time() + 1.5 * period
+    def __init__(self):
+        self.last_plan = rospy.get_time()
+        self.best_remaining, self.best_time = math.inf, rospy.get_time()
+        self.blocked_since = None
+        self.blocked_by = "no path around it"    # the last cause of blocked_since
+        self.recoveries = 0
 
-    def block(self, node):
-        node.wait_cycle(self.period, self.used_stamp, self.deadline)
+    def no_path(self, now):
+        """A re-plan found no path at ROS time ``now``: blocked since then (if not already)."""
+        if self.blocked_since is None:
+            self.blocked_since = now
+        self.blocked_by = "no path around it"
 
-    def ready(self, node):
-        return node.cycle_due(self.period, self.used_stamp) or rospy.get_time() >= self.deadline
+    def observe(self, remaining, blocked, v, now):
+        """One control cycle at ROS time ``now``: ``remaining`` cost to the goal, whether the
+        command was ``blocked``, ``v`` the speed of the previous command (above 0.05 m/s and
+        not blocked, the robot is no longer blocked). Progress counts from 0.1 m on."""
+        if remaining < self.best_remaining - 0.1:
+            self.best_remaining, self.best_time = remaining, now
+        if blocked:
+            self.blocked_since = self.blocked_since if self.blocked_since is not None else now
+            self.blocked_by = "stopped in front of it"
+        elif v > 0.05:
+            self.blocked_since = None
 
+    def stuck(self, now, blocked_patience, controller_patience):
+        """Whether the robot has been blocked for more than ``blocked_patience`` s or made no
+        progress for more than ``controller_patience`` s."""
+        return (self.blocked_since is not None and now - self.blocked_since > blocked_patience) \
+            or now - self.best_time > controller_patience
 
-class SleepUntil:
-    """Wait until ROS time ``until`` (s)."""
-    __slots__ = ("until",)
-
-    def __init__(self, until):
-        self.until = until
-
-    def block(self, node):
-        rospy.sleep(self.until - rospy.get_time())     # ROSInterruptException at shutdown
-
-    def ready(self, node):
-        return rospy.get_time() >= self.until
-
-
-class PlanDone:
-    """Wait for a plan that a :class:`ControlLoop`'s planning thread computes."""
-    __slots__ = ("future",)
-
-    def __init__(self, future):
-        self.future = future
-
-    def block(self, node):
-        self.future.result()
-
-    def ready(self, node):
-        return self.future.done()
-
-
-class Rate:
-    """rospy.Rate's schedule as waits: ``yield rate.sleep()`` waits until one period after
-    the previous wake-up (and restarts from now if more than two periods behind, or if time
-    went backwards), as ``rospy.Rate.sleep`` does."""
-
-    def __init__(self, hz):
-        self.period = 1.0 / hz
-        self.last = rospy.get_time()
-
-    def sleep(self):
-        now = rospy.get_time()
-        if now < self.last:
-            self.last = now
-        until = self.last + self.period
-        self.last = until
-        if now - self.last > 2 * self.period:
-            self.last = now
-        return SleepUntil(until)
+    def restart(self):
+        """After a recovery: not blocked, no progress seen, last plan now (ROS time)."""
+        self.blocked_since = None
+        self.best_remaining, self.best_time = math.inf, rospy.get_time()
+        self.last_plan = rospy.get_time()
 
 
 class GoalExecution:
@@ -113,7 +92,7 @@ class GoalExecution:
             try:
                 wait.block(self)
             except rospy.ROSInterruptException as e:
-                wait = _throw(task, e)
+                wait = throw_into(task, e)
                 continue
             wait = next(task, None)
 
@@ -166,15 +145,12 @@ class GoalExecution:
             rospy.logdebug("%smove_base: aborting the goal at shutdown: %r", self.robot_ns, e)
 
     def run_goal(self, goal_msg):
-        """Drive to the goal. Returns a new goal if preempted by one, None when finished."""
-        frame = strip_slash(goal_msg.target_pose.header.frame_id)
-        if frame not in ("", self.global_frame):
-            raise Aborted(f"goal frame '{frame}' is not the global frame "
-                          f"'{self.global_frame}'")
-        gp = goal_msg.target_pose.pose.position
-        goal = (gp.x, gp.y)
-        if not (math.isfinite(gp.x) and math.isfinite(gp.y)):
-            raise Aborted("goal position is not finite")
+        """Drive to the goal. Returns a new goal if preempted by one, None when finished.
+
+        Raises:
+            Aborted: the goal failed; the message is the reason.
+        """
+        goal = self._goal_position(goal_msg)
         rate = Rate(self.frequency)
         dt = 1.0 / self.frequency
         start = rospy.get_time()
@@ -188,29 +164,12 @@ class GoalExecution:
             yield rate.sleep()
             pose = self.pose()
         self.laser(pose)
-        try:
-            path = yield from self.planned(pose, goal)
-        except PlanningError as e:
-            self.planner.clear_obstacles()
-            try:    # a bad goal is final
-                self.planner.check_goal(goal[0], goal[1], self.cp.xy_goal_tolerance)
-            except PlanningError as bad:
-                raise Aborted(str(bad)) from None
-            try:    # maybe only temporary obstacles are in the way: try the static map
-                with self.lock:
-                    self.memory.clear()
-                path = yield from self.planned(pose, goal, with_obstacles=False)
-            except PlanningError:
-                raise Aborted(str(e)) from None
+        path = yield from self._first_plan(pose, goal)
         timeout = self.goal_timeout if self.goal_timeout > 0 else \
             30.0 + 4.0 * path_length(path) / self.cp.max_vel_x
         deadline = start + timeout
         index = 0
-        last_plan = rospy.get_time()
-        best_remaining, best_time = math.inf, rospy.get_time()
-        blocked_since = None
-        blocked_by = "no path around it"    # the last cause of blocked_since, for the log
-        recoveries = 0
+        progress = GoalProgress()
         feedback = MoveBaseFeedback()
         feedback.base_position.header.frame_id = self.global_frame
         last_feedback = -math.inf
@@ -225,29 +184,7 @@ class GoalExecution:
             if pose is None:
                 raise Aborted("lost the pose")
             near, dynamic = self.laser(pose)
-            # periodic replanning (the navigation function makes it cheap unless the
-            # obstacle set changed), and immediate replanning if the path is blocked
-            replan = self.planner_frequency > 0 and now - last_plan >= 1.0 / self.planner_frequency
-            with self.lock:
-                obst = self.memory.points()
-            refresh = False
-            if len(obst) and now - last_plan >= 0.5 and \
-                    path_blocked(path, obst, self.cp.robot_radius + self.cp.safety_margin, index,
-                                 3.0) is not None:
-                replan = refresh = True
-            if replan:
-                last_plan = now
-                try:
-                    # from the navigation function at hand (no search) unless the obstacles
-                    # changed: the cheap periodic re-plans stay in this thread
-                    path = yield from self.planned(pose, goal, refresh=refresh,
-                                                   elsewhere=refresh)
-                    index = 0
-                except PlanningError as e:
-                    if blocked_since is None:
-                        blocked_since = now
-                    blocked_by = "no path around it"
-                    rospy.logdebug("%smove_base: replanning failed: %s", self.robot_ns, e)
+            path, index = yield from self._replanned(pose, goal, path, index, progress, now)
             cmd = compute_command(pose, self.v, self.w, path, index, near, dt, self.cp, dynamic)
             index = cmd.index
             if cmd.done:
@@ -257,35 +194,12 @@ class GoalExecution:
             remaining = self.planner.path_cost(pose[:2])
             if not math.isfinite(remaining):
                 remaining = path_length(path[index:])
-            if remaining < best_remaining - 0.1:
-                best_remaining, best_time = remaining, now
-            if cmd.blocked:
-                blocked_since = blocked_since if blocked_since is not None else now
-                blocked_by = "stopped in front of it"
-            elif self.v > 0.05:
-                blocked_since = None
-            stuck = (blocked_since is not None and now - blocked_since > self.blocked_patience) \
-                or now - best_time > self.controller_patience
-            if stuck:
-                recoveries += 1
-                reason = f"blocked by an obstacle ({blocked_by})" if blocked_since is not None \
-                    else f"no progress for {self.controller_patience:.0f} s"
-                if recoveries > self.max_recoveries:
-                    raise Aborted(f"{reason}; giving up after {self.max_recoveries} recoveries")
-                rospy.loginfo("%smove_base: %s, recovery %d/%d", self.robot_ns, reason,
-                              recoveries, self.max_recoveries)
-                res = yield from self.recover(recoveries, goal, rate)
+            progress.observe(remaining, cmd.blocked, self.v, now)
+            if progress.stuck(now, self.blocked_patience, self.controller_patience):
+                res, path = yield from self._recover_when_stuck(progress, goal, path, rate)
                 if res is not None:
                     return res
-                pose = self.pose()
-                try:
-                    path = yield from self.planned(pose, goal)
-                except PlanningError:
-                    pass
                 index = 0
-                blocked_since = None
-                best_remaining, best_time = math.inf, rospy.get_time()
-                last_plan = rospy.get_time()
                 continue
             self.send(cmd.v, cmd.w)
             if now - last_feedback >= self.feedback_period - 1e-6:
@@ -295,6 +209,90 @@ class GoalExecution:
                 self.server.publish_feedback(feedback)
             yield NextCycle(dt, used_stamp)
         return None
+
+    def _goal_position(self, goal_msg):
+        """(x, y) of the goal of ``goal_msg`` (a MoveBaseGoal). Raises Aborted if its frame
+        is neither empty nor the global frame, or if the position is not finite."""
+        frame = strip_slash(goal_msg.target_pose.header.frame_id)
+        if frame not in ("", self.global_frame):
+            raise Aborted(f"goal frame '{frame}' is not the global frame "
+                          f"'{self.global_frame}'")
+        gp = goal_msg.target_pose.pose.position
+        goal = (gp.x, gp.y)
+        if not (math.isfinite(gp.x) and math.isfinite(gp.y)):
+            raise Aborted("goal position is not finite")
+        return goal
+
+    def _first_plan(self, pose, goal):
+        """The goal's first path (generator of waits, as :meth:`planned`). If there is none,
+        the temporary obstacles are dropped (planner and obstacle memory) and the static map
+        alone is tried, unless the goal itself is bad. Raises Aborted with the goal's fault,
+        or with the first planning error if the static map has no path either."""
+        try:
+            path = yield from self.planned(pose, goal)
+        except PlanningError as e:
+            self.planner.clear_obstacles()
+            try:    # a bad goal is final
+                self.planner.check_goal(goal[0], goal[1], self.cp.xy_goal_tolerance)
+            except PlanningError as bad:
+                raise Aborted(str(bad)) from None
+            try:    # maybe only temporary obstacles are in the way: try the static map
+                with self.lock:
+                    self.memory.clear()
+                path = yield from self.planned(pose, goal, with_obstacles=False)
+            except PlanningError:
+                raise Aborted(str(e)) from None
+        return path
+
+    def _replanned(self, pose, goal, path, index, progress, now):
+        """(path, index) after the re-planning due at ROS time ``now`` (generator of waits):
+        periodic (every 1 / ``planner_frequency`` s, from the navigation function at hand, in
+        this thread), and at once (at most every 0.5 s) when a remembered obstacle lies on the
+        path within 3 m of ``index`` (with the current obstacles, possibly in the planning
+        thread). A new path starts at index 0; a failed re-plan keeps ``path`` and ``index``
+        and marks ``progress`` blocked (:meth:`GoalProgress.no_path`)."""
+        replan = self.planner_frequency > 0 and \
+            now - progress.last_plan >= 1.0 / self.planner_frequency
+        with self.lock:
+            obst = self.memory.points()
+        refresh = False
+        if len(obst) and now - progress.last_plan >= 0.5 and \
+                path_blocked(path, obst, self.cp.robot_radius + self.cp.safety_margin, index,
+                             3.0) is not None:
+            replan = refresh = True
+        if replan:
+            progress.last_plan = now
+            try:
+                path = yield from self.planned(pose, goal, refresh=refresh, elsewhere=refresh)
+                index = 0
+            except PlanningError as e:
+                progress.no_path(now)
+                rospy.logdebug("%smove_base: replanning failed: %s", self.robot_ns, e)
+        return path, index
+
+    def _recover_when_stuck(self, progress, goal, path, rate):
+        """One more recovery (:meth:`recover`), then a new plan (generator of waits): returns
+        (the new goal if preempted by one, else None; the new path, or ``path`` if none).
+        ``progress`` restarts (:meth:`GoalProgress.restart`) unless preempted by a new goal.
+        Raises Aborted once more than ``max_recoveries`` recoveries were needed."""
+        progress.recoveries += 1
+        reason = f"blocked by an obstacle ({progress.blocked_by})" \
+            if progress.blocked_since is not None \
+            else f"no progress for {self.controller_patience:.0f} s"
+        if progress.recoveries > self.max_recoveries:
+            raise Aborted(f"{reason}; giving up after {self.max_recoveries} recoveries")
+        rospy.loginfo("%smove_base: %s, recovery %d/%d", self.robot_ns, reason,
+                      progress.recoveries, self.max_recoveries)
+        res = yield from self.recover(progress.recoveries, goal, rate)
+        if res is not None:
+            return res, path
+        pose = self.pose()
+        try:
+            path = yield from self.planned(pose, goal)
+        except PlanningError:
+            pass
+        progress.restart()
+        return None, path
 
     def preempted(self):
         self.stop()
@@ -352,108 +350,3 @@ class GoalExecution:
         # obstacles still seen stay in memory (so the new plan goes around them); the others
         # expire or are cleared by the beams that now pass through them
         return None
-
-
-def _throw(task, exc):
-    """Raise ``exc`` in the generator ``task`` at its current wait; its next wait, or None
-    when it ended."""
-    try:
-        return task.throw(exc)
-    except StopIteration:
-        return None
-
-
-class ControlLoop:
-    """One thread that runs the goals of many robots (the :class:`GoalExecution` nodes of a
-    ``nav_host``): each robot's goal is a generator of waits; the thread wakes when any
-    hosted robot's odometry or goal arrives (:meth:`wake`) and resumes every robot whose
-    wait is over, one after another. Plans that may search run in a second thread
-    (:meth:`plan`, called by :meth:`GoalExecution.planned`), so that a robot's search does
-    not hold up the other robots' commands; the robot itself waits for its plan, as its own
-    thread would. A robot's new goal is accepted here when it has none
-    running, as actionlib's execute thread would; a goal that preempts a running one is taken
-    by the running generator itself (:meth:`GoalExecution.preempted`), as before.
-
-    Falls back to a wake-up every ``idle`` wall seconds, so that waits in ROS time end even
-    while no odometry arrives. ``is_shutdown``: when to stop (then every running goal gets
-    ``ROSInterruptException`` at its wait, and ends as at a node's shutdown)."""
-
-    def __init__(self, idle=0.05, is_shutdown=rospy.is_shutdown):
-        self.idle = idle
-        self.is_shutdown = is_shutdown
-        self.nodes = []
-        self._cond = threading.Condition()
-        self._pending = False
-        self._thread = threading.Thread(target=self._run, name="control_loop", daemon=True)
-        self._planner = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="planner")
-        self.wakeups = 0        #: passes over the hosted robots
-        self.steps = 0          #: goal steps taken (waits that were over)
-
-    def add(self, node):
-        """Host ``node``'s goals (before :meth:`start`)."""
-        node._task = node._wait = None
-        self.nodes.append(node)
-
-    def start(self):
-        self._thread.start()
-
-    def wake(self):
-        with self._cond:
-            self._pending = True
-            self._cond.notify()
-
-    def plan(self, fn, *args, **kwargs):
-        """Run ``fn(*args, **kwargs)`` in the planning thread; a Future. The loop wakes when
-        it is done."""
-        future = self._planner.submit(fn, *args, **kwargs)
-        future.add_done_callback(lambda _: self.wake())
-        return future
-
-    def join(self, timeout=None):
-        self._thread.join(timeout)
-
-    def _run(self):
-        while not self.is_shutdown():
-            with self._cond:
-                if not self._pending:
-                    self._cond.wait(self.idle)
-                self._pending = False
-            self.wakeups += 1
-            for node in self.nodes:
-                try:
-                    self.steps += self._step(node)
-                except Exception as e:     # never let one robot stop the others' loops
-                    rospy.logerr("%smove_base: control loop: %r", node.robot_ns, e)
-                    node._task = node._wait = None
-                    self._abort(node, f"internal error: {e!r}")
-        self._planner.shutdown(wait=False)
-        interrupt = rospy.ROSInterruptException("ROS shutdown request")
-        for node in self.nodes:
-            if node._task is not None:
-                _throw(node._task, interrupt)
-                node._task = node._wait = None
-
-    @staticmethod
-    def _step(node):
-        """Resume ``node``'s goal if its wait is over (or start its new goal): 1 if it
-        stepped, else 0."""
-        if node._task is None:
-            if not node.server.is_new_goal_available():
-                return 0
-            node._task = node.goal_task(node.server.accept_new_goal())
-            node._wait = None
-        elif not node._wait.ready(node):
-            return 0
-        node._wait = next(node._task, None)
-        if node._wait is None:
-            node._task = None
-            ControlLoop._abort(node, "goal ended without a result")   # as actionlib does
-        return 1
-
-    @staticmethod
-    def _abort(node, text):
-        """A goal that is still active when its generator is gone ends aborted (the robot
-        stopped), so that no client waits for it forever."""
-        if node.server.is_active():
-            node.stop()
-            node.server.set_aborted(MoveBaseResult(), text)

@@ -45,7 +45,7 @@ class MoveBase(GoalExecution):
     robots in one node; ``""``: the node's own namespace); ``shared``: a
     :class:`~spqrel_nav_lite.shared.SharedMaps` of the process (grid, fields and plan cache
     shared with its other robots); ``control_loop``: a
-    :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` that runs this robot's goals in the
+    :class:`~spqrel_nav_lite.control_loop.ControlLoop` that runs this robot's goals in the
     thread it shares with the process's other robots (None: actionlib's execute thread of
     this robot runs them); ``sync_publishers``: cmd_vel and the action's feedback, status and
     result written without a send queue (:func:`write_synchronously`)."""
@@ -55,6 +55,24 @@ class MoveBase(GoalExecution):
         if robot_ns:
             ns = robot_ns + ns
         self._p = functools.partial(param, ns=ns)
+        self._read_parameters()
+        self._build_planner(ns, omap, shared)
+        self.memory = ObstacleMemory(cell=self.planner.res, timeout=self.obstacle_timeout)
+        self.lock = threading.Lock()
+        self.odom = PoseHistory(horizon=10.0)
+        self.odom_cond = threading.Condition(self.lock)    # notified on every odometry
+        self.loc = None          # (map pose, odom pose at its stamp)
+        self.scan = None
+        self.v = self.w = 0.0
+        self.robot_ns = robot_ns
+        self._connect(ns, subscribe_pose, control_loop, sync_publishers)
+        self.plans = 0
+        rospy.on_shutdown(self.log_statistics)
+
+    def _read_parameters(self):
+        """Read the goal execution's and the controller's parameters (``self._p``) into
+        attributes (``cp``: the :class:`ControllerParams`); a bad value is fatal
+        (:func:`~spqrel_nav_lite.ros_util.param`)."""
         self.global_frame = strip_slash(self._p("global_frame_id", "map", str))
         self.frequency = self._p("controller_frequency", 10.0, **POS)
         self.planner_frequency = self._p("planner_frequency", 1.0, **NONNEG)
@@ -75,6 +93,14 @@ class MoveBase(GoalExecution):
                      "acc_lim_x", "acc_lim_th", "xy_goal_tolerance", "robot_radius"):
             setattr(p, name, self._p(name, getattr(p, name), **POS))
         self.cp = p
+
+    def _build_planner(self, ns, omap, shared):
+        """Set ``planner`` (a :class:`GlobalPlanner`) and ``field`` (the likelihood field that
+        tells the laser points the map explains): on the grid and field of ``shared`` (a
+        :class:`~spqrel_nav_lite.shared.SharedMaps`) if given, else built here on ``omap``
+        (read from the map server or ``ns``'s parameters if None) with this robot's plan
+        store; logs the grid and its build time."""
+        p = self.cp
         if shared is not None:
             omap = shared.map
         omap = get_map(ns) if omap is None else omap
@@ -102,22 +128,20 @@ class MoveBase(GoalExecution):
         rospy.loginfo("move_base: planner grid %dx%d at %.3f m, built in %.2f s; searches with "
                       "obstacles: %s", self.planner.w, self.planner.h, self.planner.res,
                       time.time() - t0, self.planner.search_label)
-        self.memory = ObstacleMemory(cell=self.planner.res, timeout=self.obstacle_timeout)
-        self.lock = threading.Lock()
-        self.odom = PoseHistory(horizon=10.0)
-        self.odom_cond = threading.Condition(self.lock)    # notified on every odometry
-        self.loc = None          # (map pose, odom pose at its stamp)
-        self.scan = None
-        self.v = self.w = 0.0
-        self.robot_ns = r = robot_ns
+
+    def _connect(self, ns, subscribe_pose, control_loop, sync_publishers):
+        """Create the publishers, subscriptions, service and action server (under
+        ``robot_ns``; the plan topic and the service under ``ns``) and start the server; with
+        a ``control_loop`` it runs the goals, else actionlib's execute thread does."""
+        r = self.robot_ns
         self.cmd_pub = rospy.Publisher(r + "cmd_vel", Twist, queue_size=1)
         if sync_publishers:         # before the simulator subscribes
             write_synchronously(self.cmd_pub)
         self.last_path = None
         self.plan_pub = rospy.Publisher(ns + "plan", Path, queue_size=1, latch=True,
                                         subscriber_listener=_PlanOnSubscribe(self))
-        # set before the first subscription: a callback may run before __init__ returns
-        # (odometry arriving at once made on_odom raise AttributeError, seen in a 16-robot run)
+        # set before the first subscription: a callback (on_odom) may run before __init__
+        # returns
         self.control_loop = control_loop
         rospy.Subscriber(r + "odom", Odometry, self.on_odom, queue_size=5, tcp_nodelay=True)
         if subscribe_pose:
@@ -140,15 +164,13 @@ class MoveBase(GoalExecution):
         self.client = None
         rospy.Subscriber(r + "move_base_simple/goal", PoseStamped, self.on_simple_goal,
                          queue_size=1)
-        self.plans = 0
-        rospy.on_shutdown(self.log_statistics)
 
     def log_statistics(self):
         pl = self.planner
         rospy.loginfo("%smove_base: %d plans, %d searches (%d with obstacles in a window, %d "
                       "A* expanding %d cells), %d navigation functions cached", self.robot_ns,
                       self.plans, pl.searches, pl.window_searches, pl.astar_searches,
-                      pl.astar_expanded, len(pl._cache))
+                      pl.astar_expanded, len(pl.grid.cache))
 
     # -- inputs -----------------------------------------------------------------------------------
     def on_odom(self, msg):
@@ -320,11 +342,10 @@ def write_synchronously(publisher):
     own per subscriber connection, which wakes to write it, and the queued write ends with
     ``time.sleep(0)``, handing the GIL to another thread: for cmd_vel, published every
     control cycle, and the action's feedback (``~feedback_frequency``), that is thread
-    switches per message and per robot (docs/benchmarks/runner.md, "Fewer threads", "One
-    receiving thread"). These messages are small and their subscribers read at once, so the
-    write does not block; a subscriber that stopped reading would block it once the socket's
-    buffer is full, so only nav_host, a simulation layout, uses it: the per-robot nodes keep
-    a queue, as real robots need."""
+    switches per message and per robot (docs/navigation.md, "Threads"). These messages are
+    small and their subscribers read at once, so the write does not block; a subscriber that
+    stopped reading would block it once the socket's buffer is full, so only nav_host, a
+    simulation layout, uses it: the per-robot nodes keep a queue, as real robots need."""
     publisher.impl.set_queue_size(None)
 
 

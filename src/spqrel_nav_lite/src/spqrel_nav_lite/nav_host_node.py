@@ -19,7 +19,7 @@ whatever ``~plan_cache_mb`` says; the runner sets the patrol graph's vertex coun
 ``~plan_store`` (default empty: none; a folder shared with other processes and runs, see
 :mod:`~spqrel_nav_lite.plan_store`; the runner sets it), ``~plan_store_mb`` (its bound,
 default 4096), ``~control_threads`` (default 1: the threads that run the control loops of
-the hosted robots, each a :class:`~spqrel_nav_lite.move_base_goal.ControlLoop` for every K-th
+the hosted robots, each a :class:`~spqrel_nav_lite.control_loop.ControlLoop` for every K-th
 robot; 0: actionlib's execute thread per robot, as in ``robot_nav``),
 ``~shared_receiver`` (default true: one :class:`~spqrel_nav_lite.shared_receiver.SharedReceiver`
 thread receives the hosted robots' ``odom``, ``base_pose_ground_truth`` and ``base_scan``;
@@ -34,6 +34,12 @@ import re
 import rospy
 
 from .ros_util import fatal, get_map, param
+from .amcl_node import Amcl, log_update_times
+from .control_loop import ControlLoop
+from .fake_localization_node import FakeLocalization
+from .move_base_node import MoveBase
+from .shared import SharedMaps
+from .shared_receiver import SharedReceiver
 
 MODES = ("AMCL", "fake_localization")
 ROBOT_NS = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
@@ -62,7 +68,7 @@ def share_status_timers(servers):
     actionlib's ActionServer starts a ``rospy.Timer`` per server for its status (5 Hz by
     default, ``actionlib_status_frequency``); under simulated time every such timer thread
     wakes on every ``/clock`` message, so with many robots per process these wake-ups cost
-    CPU of their own (docs/benchmarks/runner.md, "Fewer threads"). The servers' timers are
+    CPU of their own (docs/navigation.md, "Threads"). The servers' timers are
     stopped and one timer per status frequency publishes for all of them, with the same
     ``publish_status_async`` at the same rate, so the status topics are unchanged. Returns
     the new timers."""
@@ -98,20 +104,12 @@ def main():
     coalesce = param("receive_coalesce", 0.001, check=lambda v: v >= 0, what="must be >= 0")
     receiver = None
     if param("shared_receiver", True, bool):
-        from .shared_receiver import SharedReceiver
         receiver = SharedReceiver(
             (rospy.resolve_name("/" + name + "/" + topic) for name in robots
              for topic in ("odom", "base_scan", "base_pose_ground_truth")),
             coalesce=coalesce).install()
-    from .move_base_goal import ControlLoop
-    from .move_base_node import MoveBase
-    from .shared import SharedMaps
     shared = SharedMaps(get_map("~"), cache_bytes=cache_mb * 2**20, cache_goals=cache_goals,
                         store_root=store, store_bytes=store_mb * 2**20)
-    if mode == "AMCL":
-        from .amcl_node import Amcl, log_update_times
-    else:
-        from .fake_localization_node import FakeLocalization
     hosted = []
     loops = [ControlLoop() for _ in range(min(threads, len(robots)))]
     for k, name in enumerate(robots):

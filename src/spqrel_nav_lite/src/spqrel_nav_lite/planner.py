@@ -15,42 +15,25 @@ without temporary obstacles are kept in a least-recently-used cache bounded in b
 When the obstacle-free optimum crosses a temporary obstacle, the search with obstacles first
 runs in the small box around the obstacles and the robot, continued outside by the cached
 obstacle-free function (``planner_grid.box_field``): its path is kept when it costs exactly the
-box's lower bound, which makes it optimal. Otherwise the search runs in
-a window around start and goal, grown until it is provably exact: a path that leaves the window
-passes a cell ``b`` just outside it and costs at least ``|start - b| + d_free(b)`` (edge costs
-are at least their length, and obstacles only remove edges), so a window path no dearer than
-the smallest such bound is optimal on the whole map. The window grows (doubling its margin)
-until that holds or it covers the map. A goal moved off its own cell because a robot stands
-there is searched with the obstacles at once (box, then window), bounded by the (cached)
-function of the goal's own cell, never by a whole-map search of its own (see ``_free_bound``):
-the box's path must then reach the goal inside the box.
-
-With the workspace built, the window searches (and the whole-map search they may end in)
-are replaced by one A* (``obstacle_search="astar"``, the default;
-:mod:`~spqrel_nav_lite.grid_search`, in C++) from the robot's cell, guided by the goal's
-obstacle-free function (or the moved goal's bound), which obstacles can only raise (a
-consistent heuristic: the path is optimal). It expands little more than the detour's cells,
-where a window search relaxed every cell of its window (32 robots on cumberland:
-docs/benchmarks/runner.md, "A* around other robots"). Among equally cheap paths it returns
-the one a Dijkstra field from the goal gives, as the box and window searches do: A*'s own
-tie-breaking followed the obstacle-free path up to the other robot and swerved at the last
-moment, which gave the 12-robot grid runs a third more stops in front of other robots and a
-9 % higher idleness (docs/navigation.md). The box search still comes first: it is cheap.
-The A* field holds the path (exact) and a one-cell band beside it (back onto the path: an
-upper bound), so that a robot following the path, often a cell off it, keeps walking the
-same path and gets its remaining cost; a robot outside the band is searched again from
-where it is.
+box's lower bound, which makes it optimal. Otherwise one of the searches of
+:mod:`~spqrel_nav_lite.obstacle_search` runs, exact on the whole map: an A* from the robot's
+cell (``obstacle_search="astar"``, the default, with the C++ workspace built) or Dijkstra in
+windows around start and goal grown until provably exact (``"window"``), which may end in a
+whole-map search. A goal moved off its own cell because a robot stands there is searched with
+the obstacles at once (box, then A* or window), bounded by the (cached) function of the goal's
+own cell, never by a whole-map search of its own (see ``_free_bound``): the box's path must
+then reach the goal inside the box.
 """
 import math
 
 import numpy as np
+from scipy.sparse.csgraph import dijkstra
 
 from . import grid_search
-from .planner_grid import (NEIGHBOURS, PlannerGrid, box_field, edge_cost, embed_field,
-                           window_cells, window_graph)
+from .obstacle_search import path_field, window_field
+from .planner_grid import PlannerGrid, box_field, edge_cost
 
 
-WINDOW_MARGIN = 2.0     # metres around start and goal for the first windowed search
 OBSTACLE_SEARCHES = ("astar", "window")
 PATH_FIELD = "astar"    # the window entry of a field from the A* (one path and its band)
 
@@ -120,8 +103,8 @@ class GlobalPlanner:
     def _csgraph(self):
         """The cell graph for Dijkstra with the current temporary obstacles: the grid's
         obstacle-free graph (both directions stored: ``dijkstra(directed=False)`` would rebuild
-        the symmetric graph on every call, 10x the cost of the search itself) with the edges
-        touching obstacle cells set to infinity."""
+        the symmetric graph on every call, at more than the cost of the search itself) with the
+        edges touching obstacle cells set to infinity."""
         if self._graph is None:
             if self._obstacles.any():
                 flat = self._obstacles.ravel()
@@ -278,7 +261,6 @@ class GlobalPlanner:
             dist, pred, searched = self.grid.free_navigation_function(g)
             self.searches += int(searched)
             return dist, pred, True, None
-        from scipy.sparse.csgraph import dijkstra
         dist, pred = dijkstra(self._csgraph(), directed=True, indices=g,
                               return_predecessors=True)
         self.searches += 1
@@ -297,72 +279,22 @@ class GlobalPlanner:
             return local
         if self.astar:
             return self._path_field(s, g, free_dist)
-        w, h = self.w, self.h
-        si, sj, gi, gj = s % w, s // w, g % w, g // w
-        margin = max(int(math.ceil(WINDOW_MARGIN / self.res)),
-                     max(abs(si - gi), abs(sj - gj)) // 2)
-        while True:
-            i0, i1 = max(0, min(si, gi) - margin), min(w, max(si, gi) + margin + 1)
-            j0, j1 = max(0, min(sj, gj) - margin), min(h, max(sj, gj) + margin + 1)
-            if i0 == 0 and j0 == 0 and i1 == w and j1 == h:
-                return self._navigation_function(g, free=False)[:3] + (None,)
-            dist, pred = self._window_search(g, i0, j0, i1, j1)
-            self.searches += 1
-            ww = i1 - i0
-            cost = dist[(sj - j0) * ww + (si - i0)]
-            if cost <= self._outside_bound(si, sj, free_dist, i0, j0, i1, j1):
-                break
-            margin *= 2
+        field, searches = window_field(self.grid, self._obstacles, s, g, free_dist)
+        self.searches += searches
+        if field is None:
+            return self._navigation_function(g, free=False)[:3] + (None,)
         self.window_searches += 1
-        full_d, full_p = embed_field(window_cells(w, i0, j0, i1, j1), dist, pred,
-                                     np.full(w * h, np.inf, dtype=np.float32),
-                                     np.full(w * h, -9999, dtype=np.int32))
-        return full_d, full_p, False, (i0, j0, i1, j1)
+        full_d, full_p, window = field
+        return full_d, full_p, False, window
 
     def _path_field(self, s, g, heur):
         """(dist, pred, False, PATH_FIELD) of the A* from ``s`` to ``g`` guided by ``heur``
-        (the obstacle-free function of ``g``, or a lower bound of it): on the path's cells
-        their exact cost to ``g`` and next cell; on the open cells beside the path (one step
-        off it, as a robot following it often is) the cost of stepping back onto it and
-        following it, an upper bound; dist inf and pred -9999 elsewhere."""
-        cells, _, expanded = grid_search.astar(self.lethal, self._obstacles, self.cost, heur,
-                                               self.res, s, g)
+        (the obstacle-free function of ``g``, or a lower bound of it): the path and its band
+        (:func:`~spqrel_nav_lite.obstacle_search.path_field`)."""
+        dist, pred, expanded = path_field(self.grid, self._obstacles, heur, s, g)
         self.searches += 1
         self.astar_searches += 1
         self.astar_expanded += expanded
-        w, n = self.w, self.w * self.h
-        dist = np.full(n, np.inf, dtype=np.float32)
-        pred = np.full(n, -9999, dtype=np.int32)
-        if cells is None:
-            return dist, pred, False, PATH_FIELD
-        cost = self.cost.ravel()
-        steps = np.zeros(len(cells))
-        i, j = cells % w, cells // w
-        steps[:-1] = edge_cost(np.hypot(np.diff(i), np.diff(j)) * self.res, cost[cells[:-1]],
-                               cost[cells[1:]])
-        togo = np.cumsum(steps[::-1])[::-1]         # cost from each path cell to g
-        # the band: each open neighbour of a path cell, linked to its cheapest path neighbour
-        # (lethal and obstacles read at those cells: blocked_mask() would build a whole grid)
-        q, via, c = [], [], []
-        for dj, di in NEIGHBOURS:
-            qi, qj = i + di, j + dj
-            ok = (qi >= 0) & (qi < w) & (qj >= 0) & (qj < self.h)
-            ok[ok] &= ~self.lethal[qj[ok], qi[ok]] & ~self._obstacles[qj[ok], qi[ok]]
-            if di and dj:           # no corner cutting past a forbidden (static) cell
-                ok[ok] &= ~self.lethal[j[ok], qi[ok]] & ~self.lethal[qj[ok], i[ok]]
-            qc = qj[ok] * w + qi[ok]
-            q.append(qc)
-            via.append(cells[ok])
-            c.append(togo[ok] + edge_cost(math.hypot(di, dj) * self.res, cost[qc],
-                                          cost[cells[ok]]))
-        q, via, c = np.concatenate(q), np.concatenate(via), np.concatenate(c)
-        order = np.lexsort((c, q))
-        first = np.ones(len(order), dtype=bool)
-        first[1:] = q[order][1:] != q[order][:-1]
-        q, via, c = q[order][first], via[order][first], c[order][first]
-        dist[q], pred[q] = c, via
-        dist[cells], pred[cells[:-1]] = togo, cells[1:]     # path cells keep their own
-        pred[g] = -9999
         return dist, pred, False, PATH_FIELD
 
     def _local_field(self, s, g, free_dist, free_pred):
@@ -393,49 +325,14 @@ class GlobalPlanner:
         cell ``g0`` by a temporary obstacle. Then it is ``d0 - d0[g]`` with ``d0`` the cached
         obstacle-free function of ``g0`` (the triangle inequality on the symmetric cell graph:
         d(x, g0) <= d(x, g) + d(g, g0)). The cells a goal is moved to change with every robot
-        standing near it, so searching each of them on the whole map missed the cache (32
-        robots on cumberland: 4 of 5 whole-map searches, 80 ms each; docs/benchmarks/runner.md)
-        while the vertices themselves stay cached."""
+        standing near it, while the vertices themselves stay cached: the bound comes from the
+        cache instead of a whole-map search of each moved goal."""
         g0 = self._taken_goal
         if g0 is not None:
             d0 = self._navigation_function(g0, free=True)[0]
             if np.isfinite(d0[g]):
                 return np.maximum(d0 - d0[g], 0.0)
         return self._navigation_function(g, free=True)[0]
-
-    def _window_search(self, g, i0, j0, i1, j1):
-        """Dijkstra from ``g`` over the cells of [i0, i1) x [j0, j1) without temporary
-        obstacles; (dist, pred) indexed by window cell (row-major), pred -9999 at roots."""
-        from scipy.sparse.csgraph import dijkstra
-        graph = window_graph(self.grid, self._obstacles, i0, j0, i1, j1)
-        ww = i1 - i0
-        gl = (g // self.w - j0) * ww + g % self.w - i0
-        return dijkstra(graph, directed=True, indices=gl, return_predecessors=True)
-
-    def _outside_bound(self, si, sj, free_dist, i0, j0, i1, j1):
-        """Lower bound on the cost of any path from (si, sj) that leaves the window: over the
-        cells just outside it, straight-line distance from the start plus the obstacle-free
-        distance to the goal."""
-        w, h = self.w, self.h
-        ring = []
-        if j0 > 0:
-            ring.append((np.arange(max(0, i0 - 1), min(w, i1 + 1)), np.full(1, j0 - 1)))
-        if j1 < h:
-            ring.append((np.arange(max(0, i0 - 1), min(w, i1 + 1)), np.full(1, j1)))
-        if i0 > 0:
-            ring.append((np.full(1, i0 - 1), np.arange(j0, j1)))
-        if i1 < w:
-            ring.append((np.full(1, i1), np.arange(j0, j1)))
-        best = np.inf
-        flat = self._obstacles.ravel()
-        for ii, jj in ring:
-            ii, jj = np.broadcast_arrays(ii, jj)
-            idx = jj * w + ii
-            lb = np.hypot(ii - si, jj - sj) * self.res + free_dist[idx]
-            lb = lb[~flat[idx]]
-            if len(lb):
-                best = min(best, float(lb.min()))
-        return best
 
     def path_cost(self, start):
         """Navigation-function value (weighted metres) at a position, inf if unreachable or no

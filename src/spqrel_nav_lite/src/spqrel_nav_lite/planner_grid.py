@@ -17,6 +17,8 @@ from collections import OrderedDict
 
 import numpy as np
 
+from .plan_store import PlanStore, graph_key
+
 
 def symmetric_csr(src, dst, weight, n):
     """n x n CSR matrix holding every edge (src, dst, weight) in both directions."""
@@ -238,7 +240,6 @@ class PlannerGrid:
         self.cache = NavFunctionCache(n, cache_bytes, cache_min_entries)
         self.store = None
         if store_root:
-            from .plan_store import PlanStore, graph_key
             desc = (f"map {omap.yaml_path or '(from a topic)'}\n"
                     f"grid {self.w} x {self.h} cells of {self.res} m, origin {self.origin}\n"
                     f"robot_radius {self.robot_radius}, inflation_radius "

@@ -17,6 +17,9 @@ Private parameters: ``~localization`` (``AMCL`` | ``fake_localization``, default
 import rospy
 
 from .ros_util import fatal, get_map
+from .amcl_node import Amcl, log_update_times
+from .fake_localization_node import FakeLocalization
+from .move_base_node import MoveBase
 
 MODES = ("AMCL", "fake_localization")
 
@@ -26,14 +29,11 @@ def main():
     mode = rospy.get_param("~localization", "AMCL")
     if mode not in MODES:
         fatal(f"parameter ~localization: '{mode}' is not one of {', '.join(MODES)}")
-    from .move_base_node import MoveBase
     omap = get_map("~")
     move_base = MoveBase(ns="move_base/", omap=omap, subscribe_pose=False)
     if mode == "AMCL":
-        from .amcl_node import Amcl, log_update_times
         loc = Amcl(ns="amcl/", omap=omap, pose_listeners=[move_base.set_localisation])
     else:
-        from .fake_localization_node import FakeLocalization
         loc = FakeLocalization(ns="fake_localization/",
                                pose_listeners=[move_base.set_localisation])
     rospy.loginfo("robot_nav: %s + move_base in one process", mode)

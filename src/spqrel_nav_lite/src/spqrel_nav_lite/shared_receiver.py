@@ -1,10 +1,9 @@
 """One thread receives the messages of many topic subscriptions (docs/navigation.md, "Threads").
 
 rospy reads every subscribed connection in a thread of its own: a process hosting the
-navigation of 32 robots runs some 100 receiving threads (odometry, ground truth and laser scans
-of each robot), each woken by the kernel for every message and each contending for the GIL;
-with that many robots per process, one thread for all of them gave a faster pace
-(docs/benchmarks/runner.md, "One receiving thread").
+navigation of many robots runs three receiving threads per robot (odometry, ground truth and
+laser scans), each woken by the kernel for every message and each contending for the GIL; one
+thread for all of them avoids that (bench/notes/runner.md, "One receiving thread").
 
 :class:`SharedReceiver` takes over the subscriber connections of the topics it is given: rospy
 still negotiates them (``requestTopic``) and still does the TCPROS handshake (in a short-lived
@@ -289,4 +288,3 @@ class SharedReceiver:
             self._conns[conn](msgs, conn)      # rospy logs (and survives) callback errors
         except Exception:
             _log.exception("receive callback of [%s]", conn.name)
-

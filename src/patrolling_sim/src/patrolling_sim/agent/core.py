@@ -1,7 +1,8 @@
 """One robot's PatrolAgent life cycle, free of ROS: the single implementation that both the
 ROS agent node (:mod:`patrolling_sim.ros.agent`) and the graph-level simulator
-(:mod:`patrolling_sim.graphsim.simulator`) drive. The life cycle, its order of events, the messages
-and the timing constants are described in ``docs/protocol.md``.
+(:mod:`patrolling_sim.graphsim.simulator`) drive (both build it with
+:func:`patrolling_sim.agent.factory.build_agent`). The life cycle, its order of events, the
+messages and the timing constants are described in ``docs/protocol.md``.
 
 The core is a state machine. Its driver feeds it events (``ready``, ``on_results``,
 ``on_position``, ``on_goal_result``, ``on_feedback``, ``shutdown``) and the core acts on the
@@ -21,9 +22,9 @@ Not thread safe: a multi-threaded driver (rospy) calls it under one lock.
 import random
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
-from patrolling_sim.agent.faults import MIN_COMM_DELAY, ScenarioMixin, make_comm  # noqa: F401
-from patrolling_sim.algorithms.base import (MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED,
-                              Driver, PatrolStrategy, StrategyContext, create)
+from patrolling_sim.agent.faults import MIN_COMM_DELAY, ScenarioMixin
+from patrolling_sim.algorithms.base import MSG_FAILURE, Driver, PatrolStrategy
+from patrolling_sim.common.protocol import MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 
 MONITOR_ID = -1
 GO = 100
@@ -354,8 +355,8 @@ class PatrolAgentCore(ScenarioMixin, Driver):
     def _resend(self, seq):
         """After a back-up or an interference pause: resend the same goal, or after
         ``MAX_RESENDS`` resends in a row give up on it (strategy.on_goal_failed)."""
-        if seq != self.seq or self.phase != "patrol" or self.state not in ("backing_up",
-                                                                            "paused"):
+        if (seq != self.seq or self.phase != "patrol"
+                or self.state not in ("backing_up", "paused")):
             return
         if self.resends < MAX_RESENDS:
             self.resends += 1
@@ -384,36 +385,3 @@ class PatrolAgentCore(ScenarioMixin, Driver):
         self.state = "paused"
         seq = self.seq
         self._later(INTERFERENCE_PAUSE, lambda: self._resend(seq))
-
-
-def agent_seed(run_seed: int, robot_id: int) -> int:
-    """The seed of robot ``robot_id``'s agent in a run seeded ``run_seed``, the same in graph
-    mode and in ROS mode (the runner hands it to each agent): with the same run seed a
-    robot's strategy draws the same numbers and waits the same start delay in both modes."""
-    return int(run_seed) * 1000 + int(robot_id) + 1
-
-
-def build_agent(effects: Effects, graph, robot_id: int, team_size: int, map_name: str,
-                algorithm: str, start_vertex: int, start_position=None, seed: int = 0,
-                params=None, goal_wait: float = 0.0, comm_delay: float = 0.0,
-                loss: float = 0.0, comm="perfect", occupancy=None, positions=None,
-                silence_check: bool = False) -> PatrolAgentCore:
-    """A :class:`PatrolAgentCore` running the registered strategy ``algorithm``; the
-    strategy's own generator is ``random.Random(seed)``. ``comm`` is a ``--comm`` spec (or a
-    model), applied at this robot as the receiver, seeded ``seed * 7919 + 3``; ``occupancy``
-    is the map for the range model's line of sight (:mod:`patrolling_sim.agent.faults`).
-
-    Raises:
-        KeyError: unknown algorithm (one-line message listing the known ones).
-    """
-    def factory(driver):
-        ctx = StrategyContext(graph=graph, robot_id=robot_id, team_size=team_size,
-                              map_name=map_name, rng=random.Random(seed), driver=driver,
-                              params=dict(params or {}),
-                              start_position=None if start_position is None
-                              else tuple(start_position))
-        return create(algorithm, ctx)
-    return PatrolAgentCore(effects, robot_id, start_vertex, factory, seed=seed,
-                           goal_wait=goal_wait, comm_delay=comm_delay, loss=loss,
-                           comm=make_comm(comm, seed, occupancy), positions=positions,
-                           silence_check=silence_check)

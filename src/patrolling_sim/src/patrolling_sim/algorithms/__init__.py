@@ -14,8 +14,12 @@ import logging
 import os
 import pkgutil
 
-from patrolling_sim.algorithms.base import REGISTRY, PatrolStrategy, StrategyContext, Driver, register  # noqa: F401
-from patrolling_sim.algorithms.base import argmax_random, create, names  # noqa: F401,E402
+from patrolling_sim.algorithms.base import (REGISTRY, Driver, PatrolStrategy, StrategyContext,
+                                            argmax_random, create, names, register)
+
+#: the strategy API (defined in :mod:`patrolling_sim.algorithms.base`) and the registry
+__all__ = ["REGISTRY", "Driver", "PatrolStrategy", "StrategyContext", "argmax_random", "create",
+           "discover", "names", "register"]
 
 _log = logging.getLogger(__name__)
 #: modules already imported by :func:`discover` (name -> file), and those that failed

@@ -38,11 +38,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from patrolling_sim.model.graph import PatrolGraph
 
-# message types and int16 caps on /results (docs/protocol.md): named once in
-# patrolling_sim.common.protocol, re-exported here for the algorithms
-from patrolling_sim.common.protocol import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_GBS_REACHED,  # noqa: F401
-                        MSG_INIT, MSG_INTERFERENCE, MSG_SEBS_REACHED, MSG_SSI_BID,
-                        MSG_SSI_TASK_REQUEST, MSG_TARGET_REACHED, MSG_ROBOT_STATUS)
+from patrolling_sim.common.protocol import MSG_ROBOT_STATUS
 #: ``[i, 13, 0]`` robot i failed, ``[i, 13, 1]`` it is back (docs/scenarios.md)
 MSG_FAILURE = MSG_ROBOT_STATUS
 

@@ -29,7 +29,8 @@ attribute) gives the full team size.
 """
 import math
 
-from patrolling_sim.algorithms.base import MSG_SEBS_REACHED, PatrolStrategy, register
+from patrolling_sim.algorithms.base import PatrolStrategy, register
+from patrolling_sim.common.protocol import MSG_SEBS_REACHED
 
 HIST_MIN, HIST_MAX = 0.5, 2.0
 #: weight of a candidate's own expected idleness in the look-ahead prior

@@ -9,12 +9,12 @@ a Hamiltonian circuit where the walk finds one. The construction is seeded, so i
 random element: the same route on every run.
 
 Where the walk finds neither (every shipped map but grid) the route is the original's
-second construction (:func:`patrolling_sim.planning.cyclic_route.cyclic_route`): its longest cycle or
-longest path between degree-1 vertices, with detours over the edges it misses (``num_arcs``
-bisected), a path walked back. Should that construction fail (no cycle of V/2 entries and
-no two degree-1 vertices, a search over its step bound, or a route missing a vertex), this
-module uses the short closed tour of :mod:`~patrolling_sim.algorithms.cgg_tsp` and logs a
-one-line warning (see docs/fidelity.md). ``CGG_TSP`` always uses that tour.
+second construction (:func:`patrolling_sim.planning.cyclic_route.cyclic_route`): its longest
+cycle or longest path between degree-1 vertices, with detours over the edges it misses
+(``num_arcs`` bisected), a path walked back. Should that construction fail (no cycle of V/2
+entries and no two degree-1 vertices, a search over its step bound, or a route missing a
+vertex), this module uses the short closed tour of :mod:`~patrolling_sim.algorithms.cgg_tsp`
+and logs a one-line warning (see docs/fidelity.md). ``CGG_TSP`` always uses that tour.
 """
 import logging
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from patrolling_sim.common import paths
 from patrolling_sim.model.dta_params import load_dta_params
-from patrolling_sim.algorithms.base import INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS
+from patrolling_sim.common.protocol import INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS
 
 #: the payload carries idleness in tenths of a second
 IDLENESS_SCALE = 10.0

@@ -17,7 +17,8 @@ from it (path costs from the contested vertex) and heads to the new goal.
 """
 import numpy as np
 
-from patrolling_sim.algorithms.base import MSG_DTA_IDLENESS, PatrolStrategy, register
+from patrolling_sim.algorithms.base import PatrolStrategy, register
+from patrolling_sim.common.protocol import MSG_DTA_IDLENESS
 from patrolling_sim.algorithms.dta_common import IdlenessEstimate, decode_seconds, dta_params
 
 DEFAULTS = {"theta_idleness": 1.0, "theta_navigation": -0.75,

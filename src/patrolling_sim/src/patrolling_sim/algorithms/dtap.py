@@ -39,10 +39,11 @@ once instead.
 """
 import numpy as np
 
-from patrolling_sim.algorithms.base import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID,
-                   MSG_SSI_TASK_REQUEST, PatrolStrategy, register)
-from patrolling_sim.algorithms.dta_common import (IdlenessEstimate, VersionedDict, decode_seconds, dta_params,
-                         path_hops)
+from patrolling_sim.algorithms.base import PatrolStrategy, register
+from patrolling_sim.common.protocol import (INT16_CAP, INT16_MAX, MSG_DTA_IDLENESS, MSG_SSI_BID,
+                                            MSG_SSI_TASK_REQUEST)
+from patrolling_sim.algorithms.dta_common import (IdlenessEstimate, VersionedDict, decode_seconds,
+                                                  dta_params, path_hops)
 
 DEFAULTS = {"timeout": 3.0, "theta_idleness": 1.0, "theta_navigation": 0.0,
             "theta_hop": -2.0, "threshold": 0.0, "hist": 0.0}

@@ -11,7 +11,8 @@ overridden with the ``G1``/``G2``/``edge_min`` parameters.
 """
 import math
 
-from patrolling_sim.algorithms.base import MSG_GBS_REACHED, PatrolStrategy, argmax_random, register
+from patrolling_sim.algorithms.base import PatrolStrategy, argmax_random, register
+from patrolling_sim.common.protocol import MSG_GBS_REACHED
 
 G1_DEFAULT, G2_DEFAULT, EDGE_MIN_DEFAULT = 0.1, 100.0, 1.0
 #: map -> (edge_min, {team size: G2}) from the original implementation

@@ -5,9 +5,9 @@ over a closed route of its own region. The original read offline route files
 ``MSP/<map>/<map>_<N>_<i>``; those are used when they are valid closed walks on the current
 graph (grid's are), otherwise (stale files, or no file for this team size) the partition and
 routes are computed here: :func:`patrolling_sim.planning.routes.balanced_partition` plus
-:func:`patrolling_sim.planning.routes.closed_route` per region. All robots compute the same partition;
-regions are matched to robots by start position when the team's start vertices are known
-(``ctx.params['start_vertices']``), else region i goes to robot i. ``MSP_BAL``
+:func:`patrolling_sim.planning.routes.closed_route` per region. All robots compute the same
+partition; regions are matched to robots by start position when the team's start vertices
+are known (``ctx.params['start_vertices']``), else region i goes to robot i. ``MSP_BAL``
 (:mod:`~patrolling_sim.algorithms.msp_bal`) always uses the computed partition.
 """
 import logging

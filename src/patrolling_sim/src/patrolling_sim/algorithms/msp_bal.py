@@ -10,9 +10,9 @@ class BalancedSubgraphPatrolling(RouteFollower):
     """MSP_BAL (this project's, not the original's): MSP's idea on partitions computed here
     for any map and team size -- :func:`patrolling_sim.planning.routes.balanced_partition` into N
     connected regions of near-equal size, a short closed route per region
-    (:func:`patrolling_sim.planning.routes.closed_route`), regions matched to robots by distance from
-    their start vertices, each robot starting its route at its own vertex (or the region's
-    nearest vertex). The shipped route files are not used."""
+    (:func:`patrolling_sim.planning.routes.closed_route`), regions matched to robots by
+    distance from their start vertices, each robot starting its route at its own vertex (or
+    the region's nearest vertex). The shipped route files are not used."""
     name = "MSP_BAL"
     #: each robot follows its own region's route (not one route shared by the team)
     shared_route = False

@@ -5,7 +5,8 @@ a neighbour that c > 0 other robots announced as their next goal has its probabi
 multiplied by ``2^(N-c) / (2^N - 1)``. Robots broadcast ``[id, 32, v, next]`` on reaching v;
 receivers treat v as visited now and record the sender's intention.
 """
-from patrolling_sim.algorithms.base import MSG_SEBS_REACHED, PatrolStrategy, argmax_random, register
+from patrolling_sim.algorithms.base import PatrolStrategy, argmax_random, register
+from patrolling_sim.common.protocol import MSG_SEBS_REACHED
 from patrolling_sim.algorithms.gbs import gbs_probability
 
 

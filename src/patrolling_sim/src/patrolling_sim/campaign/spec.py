@@ -1,5 +1,6 @@
 """Campaign files: reading and validating a campaign (YAML grid), the run specs and their
-stable keys. Part of :mod:`patrolling_sim.campaign.engine` (see its docstring and docs/campaigns.md)."""
+stable keys. Part of :mod:`patrolling_sim.campaign.engine` (see its docstring and
+docs/campaigns.md)."""
 import dataclasses
 import hashlib
 import itertools
@@ -15,7 +16,7 @@ from patrolling_sim.campaign.run_warnings import RunWarnings
 from patrolling_sim.common import paths
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.algorithms import names
-from patrolling_sim.graphsim.simulator import GraphSimConfig
+from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.runner.config import ExperimentConfig
 
 MODES = ("graph", "ros")
@@ -97,7 +98,9 @@ def _check_type(where, key, value, f):
 
 def code_version(root: Optional[str] = None) -> Dict[str, object]:
     """``{"commit": sha or "unknown", "dirty": bool or None}`` of the workspace."""
-    root = root or paths.data_root()
+    root = root or paths.source_root()
+    if root is None:                  # an install space: no git checkout to ask
+        return {"commit": "unknown", "dirty": None}
     try:
         commit = subprocess.run(["git", "-C", root, "rev-parse", "HEAD"], capture_output=True,
                                 text=True, timeout=10, check=True).stdout.strip()
@@ -115,12 +118,10 @@ def run_key(mode: str, config: dict, commit: str) -> str:
     return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
 
-def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campaign:
-    """Read and validate a campaign file; every run is validated.
-
-    Raises:
-        PatrolInputError: one line naming the file and the key that is wrong.
-    """
+def _read_file(path):
+    """The top-level mapping of the campaign file ``path``, its keys checked against
+    TOP_KEYS. Raises PatrolInputError: the file cannot be read, is not valid YAML (with its
+    line when known), is not a mapping or has an unknown key."""
     try:
         with open(path) as f:
             raw = yaml.safe_load(f)
@@ -135,10 +136,14 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
     for k in raw:
         if k not in TOP_KEYS:
             raise PatrolInputError(f"{path}: unknown key '{k}' (known: {', '.join(TOP_KEYS)})")
-    mode = raw.get("mode", "graph")
-    if mode not in MODES:
-        raise PatrolInputError(f"{path}: mode: expected one of {', '.join(MODES)}, got {mode!r}")
-    fields = config_fields(mode)
+    return raw
+
+
+def _sections(path, raw, mode, fields):
+    """(fixed, grid) of the campaign file's mapping ``raw``: its ``fixed`` settings and its
+    ``grid`` (a new dict) with ``seeds`` turned into ``grid.seed`` and ``"all"`` maps or
+    algorithms expanded. Raises PatrolInputError: a section is not a mapping, names a key
+    not in ``fields`` (of ``mode``), or ``seeds`` is bad or given with ``grid.seed``."""
     fixed = raw.get("fixed") or {}
     grid = raw.get("grid") or {}
     for where, d in (("fixed", fixed), ("grid", grid)):
@@ -162,6 +167,13 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
                 grid[k] = paths.available_maps()
             else:
                 grid[k] = names()
+    return fixed, grid
+
+
+def _check_values(path, fixed, grid, fields):
+    """Check the values of ``fixed`` and ``grid`` against ``fields``: each grid value a
+    non-empty list of values of the field's type, no key in both, every map named found
+    with its graph file. Raises PatrolInputError naming the first key that is wrong."""
     for k, values in grid.items():
         if not isinstance(values, list):
             raise PatrolInputError(f"{path}: grid.{k}: expected a list of values")
@@ -182,12 +194,18 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
                 raise PatrolInputError(f"{path}: {where}.map: {e}")
             if not os.path.isfile(graph_path):
                 raise PatrolInputError(f"{path}: {where}.map: no graph file {graph_path}")
-    code = code or code_version()
+
+
+def _make_runs(path, mode, fields, fixed, grid, commit):
+    """(runs, warning counts): one validated RunSpec per combination of the ``grid`` values
+    (in the grid's key order), its configuration the fields' defaults, then ``fixed``, then
+    the combination, keyed with ``commit``; and {message: number of runs} of the warnings
+    the validation logged (counted, not printed once per run: a campaign of a thousand runs
+    would print each a thousand times). Raises PatrolInputError naming the run whose
+    configuration is invalid."""
     cls = _config_class(mode)
     keys = list(grid)
     runs = []
-    # the warnings validation logs are counted, not printed once per run: a campaign of a
-    # thousand runs would print each a thousand times
     with RunWarnings() as warned:
         for combo in itertools.product(*(grid[k] for k in keys)):
             cfg = {n: _default(f) for n, f in fields.items()}
@@ -199,7 +217,26 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
                 obj.validate()
             except (PatrolInputError, TypeError, ValueError) as e:
                 raise PatrolInputError(f"{path}: run with {where}: {e}")
-            runs.append(RunSpec(run_key(mode, cfg, str(code["commit"])), mode, cfg))
+            runs.append(RunSpec(run_key(mode, cfg, commit), mode, cfg))
+    return runs, warned.counts
+
+
+def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campaign:
+    """Read and validate a campaign file; every run is validated. ``code``: the code
+    version the run keys use (default: :func:`code_version` of the workspace).
+
+    Raises:
+        PatrolInputError: one line naming the file and the key that is wrong.
+    """
+    raw = _read_file(path)
+    mode = raw.get("mode", "graph")
+    if mode not in MODES:
+        raise PatrolInputError(f"{path}: mode: expected one of {', '.join(MODES)}, got {mode!r}")
+    fields = config_fields(mode)
+    fixed, grid = _sections(path, raw, mode, fields)
+    _check_values(path, fixed, grid, fields)
+    code = code or code_version()
+    runs, counts = _make_runs(path, mode, fields, fixed, grid, str(code["commit"]))
     if not runs:
         raise PatrolInputError(f"{path}: no run (give grid values or fixed settings)")
     if len({r.key for r in runs}) != len(runs):
@@ -208,5 +245,4 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
     n = len(runs)
     return Campaign(str(name), mode, os.path.abspath(path), runs, raw, code,
                     warnings=[msg + (f" (in {k} of the {n} runs)" if n > 1 else "")
-                              for msg, k in warned.counts.items()])
-
+                              for msg, k in counts.items()])

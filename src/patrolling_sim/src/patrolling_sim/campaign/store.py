@@ -13,10 +13,11 @@ from patrolling_sim.campaign.spec import (DONE_STATUSES, FAILED_STATUSES, RESULT
                                           STATE_DIR, Campaign, RunSpec)
 from patrolling_sim.common.textfile import YamlDumper, YamlLoader
 
+
 def write_atomic(path, text):
     """Write ``text`` (UTF-8) to ``path`` through ``path.part`` and a rename, so a reader
     never sees half a file. Plain os.open/os.write: the client writes ~9 files per graph run
-    and this is a third cheaper than a Python file object (docs/benchmarks/campaign.md)."""
+    and this is a third cheaper than a Python file object (bench/notes/campaign.md)."""
     tmp = path + ".part"
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
@@ -100,7 +101,7 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign,
     if result.get("log_tail") and record["status"] not in DONE_STATUSES:
         record["log_tail"] = result["log_tail"]
     write_atomic(os.path.join(out, STATE_DIR, spec.key + ".yaml"),
-                  yaml.dump(record, Dumper=YamlDumper, sort_keys=False))
+                 yaml.dump(record, Dumper=YamlDumper, sort_keys=False))
     return record
 
 
@@ -139,7 +140,7 @@ def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
     in the order they first appear, a missing value or NaN as an empty cell, ``\\n`` line
     ends), so that ``pandas.read_csv`` reads it as before, but without importing pandas: its
     0.2 s of import was on the campaign's critical path, or took CPU from the workers
-    (docs/benchmarks/campaign.md). One difference in the text: an integer column with
+    (bench/notes/campaign.md). One difference in the text: an integer column with
     empty cells (``rc`` of runs not run) reads ``0``, not pandas' ``0.0``."""
     rows = table_rows(campaign, state)
     columns = list(dict.fromkeys(k for row in rows for k in row))

@@ -21,7 +21,7 @@ from patrolling_sim.campaign.run_warnings import RunWarnings
 from patrolling_sim.common.textfile import YamlDumper
 from patrolling_sim.common import paths
 from patrolling_sim.model import map_bundle
-from patrolling_sim.graphsim.simulator import GraphSimConfig
+from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.graphsim.simulator import GraphSimulator
 from patrolling_sim.graphsim.simulator import start_vertices_of
 from patrolling_sim.model.graph import PatrolGraph
@@ -71,8 +71,9 @@ class SchedulerGoneFirst(logging.Filter):
     campaign's own process, has already let the worker go, so the worker's next heartbeat
     fails ("Failed to communicate with scheduler during heartbeat", with a traceback of
     Dask's comm layer) and the scheduler's answer ends it ("Scheduler was unaware of this
-    worker"). Both say only that the campaign is stopping, which it reports itself. Only the campaign's own LocalCluster
-    workers get this filter (with :class:`IgnoreGroupSignals`), never a user's cluster."""
+    worker"). Both say only that the campaign is stopping, which it reports itself. Only the
+    campaign's own LocalCluster workers get this filter (with :class:`IgnoreGroupSignals`),
+    never a user's cluster."""
 
     DROP = ("Failed to communicate with scheduler during heartbeat",
             "Scheduler was unaware of this worker")
@@ -136,7 +137,7 @@ def worker_worlds() -> "WorldCache":
         # the worker's first graph run: what the process holds now (Dask, the simulator's
         # modules) lives as long as it does, so the cyclic garbage collector need not walk it
         # again at each of its full collections during the runs (1-1.5 % of a graph run's
-        # CPU time, docs/benchmarks/campaign.md); objects made from now on are collected as
+        # CPU time, bench/notes/campaign.md); objects made from now on are collected as
         # usual
         gc.freeze()
     return worlds
@@ -273,9 +274,11 @@ def chunks(n_runs: int, n_workers: int, max_size: int = 20, per_worker: int = 8)
     return [q + 1] * r + [q] * (k - r)
 
 
-def run_ros_task(config: dict, root: str) -> dict:
-    """Worker side of a ROS-mode run: the runner (its own ROS master) in a private temporary
-    results folder; returns every text file it wrote and its exit code."""
+def run_ros_task(config: dict, runner: str) -> dict:
+    """Worker side of a ROS-mode run: the runner program ``runner`` (the path of
+    ``start_experiments.py``, :func:`patrolling_sim.common.paths.program`) with its own ROS
+    master, in a private temporary results folder; returns every text file it wrote and its
+    exit code."""
     t0 = datetime.datetime.now(datetime.timezone.utc)
     wall = time.monotonic()
     cpu = _children_cpu()
@@ -285,9 +288,7 @@ def run_ros_task(config: dict, root: str) -> dict:
         with open(cfg_path, "w") as f:
             yaml.safe_dump(dict(config, results_dir=res), f)
         env = dict(os.environ, PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
-        proc = subprocess.run(["/usr/bin/python3", os.path.join(root, "scripts",
-                                                                "start_experiments.py"),
-                               "--headless", "--config", cfg_path],
+        proc = subprocess.run(["/usr/bin/python3", runner, "--headless", "--config", cfg_path],
                               env=env, capture_output=True, text=True,
                               stdin=subprocess.DEVNULL)
         files = _read_tree(res) if os.path.isdir(res) else {}
@@ -327,4 +328,3 @@ def _status_from_files(files, prefix):
     if len(info) == len(INFO_FIELDS):
         return info[INFO_FIELDS.index("termination")]
     return None
-

@@ -5,12 +5,13 @@ Every error caused by user input (a file, a parameter, a command-line argument) 
 argument) and what is wrong with it. Command-line tools print that line and exit non-zero;
 no traceback is shown to the user.
 
-The base class and the map error come from the navigation package, whose map loader the core
-uses (``spqrel_nav_lite`` must not depend on this package): one ``except PatrolInputError``
-catches map, graph and every other input error.
+The base class is the navigation package's public input error,
+``spqrel_nav_lite.errors.InputError`` (the navigation package, whose map loader
+``spqrel_nav_lite.mapio`` the core uses, must not depend on this one), so that one ``except
+PatrolInputError`` catches map errors (``spqrel_nav_lite.errors.MapFormatError``), graph
+errors and every other input error.
 """
 from spqrel_nav_lite.errors import InputError as PatrolInputError
-from spqrel_nav_lite.errors import MapFormatError  # noqa: F401
 
 
 class GraphFormatError(PatrolInputError):

@@ -1,20 +1,90 @@
-"""Where the shipped data lives (maps/, params/, MSP/) and how map names resolve.
+"""Where the package's data and programs are, in a source checkout or an install space, and
+how map names resolve.
 
-The data root is ``$PATROLLING_SIM_DATA`` if set, else the workspace root found from this
-file (``<root>/src/patrolling_sim/src/patrolling_sim/common/paths.py``).
+Two layouts are recognised from this file's place:
+
+- a **source checkout** (also its catkin devel space, which runs the sources):
+  ``<root>/src/patrolling_sim/src/patrolling_sim/common/paths.py``; data in ``<root>/maps``,
+  ``<root>/params``, ``<root>/MSP``, programs in ``<root>/scripts``, environment
+  ``<root>/devel/setup.bash``;
+- an **install space** (``catkin_make install``):
+  ``<prefix>/lib/python3/dist-packages/patrolling_sim/common/paths.py``; data in
+  ``<prefix>/share/patrolling_sim``, programs in ``<prefix>/lib/patrolling_sim``, environment
+  ``<prefix>/setup.bash``.
+
+``$PATROLLING_SIM_DATA``, if set, overrides where the data (maps, params, MSP) is read.
 """
-import functools
 import os
 
 from patrolling_sim.common.errors import PatrolInputError
 
+PACKAGE = "patrolling_sim"
+
+
+def package_parent():
+    """The folder that holds the ``patrolling_sim`` package (what ``PYTHONPATH`` must name)."""
+    return os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+
+
+def source_root():
+    """The repository root when the package runs from its source checkout, else None."""
+    root = os.path.abspath(os.path.join(package_parent(), "..", "..", ".."))
+    return root if os.path.isfile(os.path.join(root, "src", PACKAGE, "package.xml")) else None
+
+
+def install_prefix():
+    """The install prefix when the package runs from a catkin install space, else None."""
+    prefix = os.path.abspath(os.path.join(package_parent(), "..", "..", ".."))
+    share = os.path.join(prefix, "share", PACKAGE, "package.xml")
+    return prefix if os.path.isfile(share) else None
+
+
+def _layout():
+    """("source", root) or ("install", prefix). Raises PatrolInputError in neither."""
+    root = source_root()
+    if root:
+        return "source", root
+    prefix = install_prefix()
+    if prefix:
+        return "install", prefix
+    raise PatrolInputError(f"cannot tell where {PACKAGE}'s data is: {package_parent()} is "
+                           "neither a source checkout nor a catkin install space; set "
+                           "PATROLLING_SIM_DATA to the folder holding maps/, params/, MSP/")
+
 
 def data_root():
+    """The folder holding ``maps/``, ``params/`` and ``MSP/``: ``$PATROLLING_SIM_DATA`` if
+    set, else the repository root or the install space's ``share/patrolling_sim``."""
     env = os.environ.get("PATROLLING_SIM_DATA")
     if env:
         return os.path.abspath(env)
-    here = os.path.dirname(os.path.abspath(__file__))
-    return os.path.abspath(os.path.join(here, "..", "..", "..", "..", ".."))
+    kind, where = _layout()
+    return where if kind == "source" else os.path.join(where, "share", PACKAGE)
+
+
+def program(name):
+    """The path of one of the package's command-line programs (``start_experiments.py``,
+    ``graph_sim.py``, ...): ``scripts/`` of the checkout or ``lib/patrolling_sim`` of the
+    install space."""
+    kind, where = _layout()
+    folder = (os.path.join(where, "scripts") if kind == "source"
+              else os.path.join(where, "lib", PACKAGE))
+    return os.path.join(folder, name)
+
+
+def workspace_setup():
+    """The ``setup.bash`` that gives ROS processes this workspace's environment: the
+    checkout's ``devel/setup.bash`` or the install space's ``setup.bash``."""
+    kind, where = _layout()
+    return os.path.join(where, "devel", "setup.bash") if kind == "source" else \
+        os.path.join(where, "setup.bash")
+
+
+def results_root():
+    """Where results go by default: the checkout's root, or the current folder when the
+    package runs from an install space (read-only for its users)."""
+    root = source_root()
+    return root if root else os.getcwd()
 
 
 def maps_dir():

@@ -1,7 +1,7 @@
 """Reading an input text or YAML file with the project's one-line errors: ``<path>: <what>
-not found``, ``<path>: cannot read <what> (<reason>)``, ``<path>[:line]: invalid YAML``
-(DEVELOPERS.md, "bad input"). Used by the loaders of batches, DTA parameters, MSP routes
-and initial poses."""
+not found``, ``<path>: cannot read <what> (<reason>)``, ``<path>[:line]: invalid YAML``.
+Used by the loaders of batches, DTA parameters, MSP routes and initial poses; also the YAML
+emitter and loader of records written and read in bulk."""
 import yaml
 
 from patrolling_sim.common.errors import PatrolInputError

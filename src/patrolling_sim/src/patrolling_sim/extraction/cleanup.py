@@ -6,7 +6,7 @@ import math
 import networkx as nx
 
 
-def _contract_short(vert_px, edges, min_px, clear_px):
+def contract_short(vert_px, edges, min_px, clear_px):
     """Merge the two ends of every edge shorter than ``min_px`` (straight line); the merged
     vertex is the one with the larger clearance. Returns renumbered (vert_px, edges)."""
     parent = list(range(len(vert_px)))
@@ -33,7 +33,7 @@ def _contract_short(vert_px, edges, min_px, clear_px):
     return [vert_px[r] for r in roots], [(x, y, a) for (x, y), a in sorted(out_edges.items())]
 
 
-def _drop_stub_ends(vert_px, edges, min_px):
+def drop_stub_ends(vert_px, edges, min_px):
     """Drop dead-end vertices closer than ``min_px`` to their only neighbour (the leftovers
     of tiny skeleton spurs next to a junction), repeatedly; renumber the rest."""
     keep = set(range(len(vert_px)))
@@ -60,7 +60,7 @@ def _drop_stub_ends(vert_px, edges, min_px):
              for u, w, a in edges if u in keep and w in keep])
 
 
-def _renumber(G, edge_paths):
+def renumber(G, edge_paths):
     """Number vertices top-left first (rows from the top, then columns), as a person reading
     the picture would; returns (graph, edge_paths) renumbered."""
     order = sorted(G.nodes, key=lambda v: (-G.nodes[v]["y_px"], G.nodes[v]["x_px"], v))

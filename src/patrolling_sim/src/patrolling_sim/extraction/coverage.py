@@ -4,8 +4,8 @@
   radius (default 5 m) of at least one vertex *and* in its line of sight (the straight segment
   from the vertex crosses only free cells). The robot-reachable free space is the free space
   (8-connected) that holds the robot-usable piece chosen by
-  :func:`patrolling_sim.extraction.extract.extract_graph` (same outside / pocket rules), so a hand-made
-  graph and an extracted one are judged on the same cells.
+  :func:`patrolling_sim.extraction.extract.extract_graph` (same outside / pocket rules), so a
+  hand-made graph and an extracted one are judged on the same cells.
 - :func:`check_graph`: the acceptance checks of an extracted graph -- connected, every vertex
   on a free cell with the robot-radius clearance, every edge traversable (a collision-free
   path exists in the usable space), every cost within 2 % of that path's length (or the
@@ -95,7 +95,6 @@ def check_graph(occ, G, clearance=ROBOT_RADIUS, path_clearance=None,
     out = []
     if G.number_of_nodes() > 1 and not nx.is_weakly_connected(G):
         out.append(f"{name}: not connected ({nx.number_weakly_connected_components(G)} parts)")
-    res = occ.resolution
     usable = usable_space(occ, path_clearance if path_clearance is not None else clearance)
     cells = {}
     for v, d in G.nodes(data=True):

@@ -33,25 +33,23 @@ Pipeline (see docs/graph_extraction.md for the choices and the measured results)
 Everything is deterministic: no random numbers, ties broken by pixel order.
 """
 import math
+import os
 from dataclasses import dataclass, field
 from typing import List, Tuple
 
 import networkx as nx
 import numpy as np
+from scipy import ndimage
 
 from patrolling_sim.common.errors import PatrolInputError
-from patrolling_sim.extraction.cleanup import _contract_short, _drop_stub_ends, _renumber
-from patrolling_sim.extraction.free_paths import pull_string, shortest_path  # noqa: F401 - public here too
-from patrolling_sim.extraction.skeleton import _branches, _length, _merge_close_nodes, _pixel_graph, _prune
-from patrolling_sim.extraction.space import (POCKET_SHARE, describe_piece, free_pieces,  # noqa: F401
-                            select_pieces, usable_space)
+from patrolling_sim.extraction.cleanup import contract_short, drop_stub_ends, renumber
+from patrolling_sim.extraction.free_paths import shortest_path
+from patrolling_sim.extraction.skeleton import (merge_close_nodes, path_length, split_branches,
+                                                pixel_graph, prune)
+from patrolling_sim.extraction.space import describe_piece, free_pieces, select_pieces, usable_space
 from patrolling_sim.model.graph import DIRECTIONS
 from patrolling_sim.startpos.initial_poses import ROBOT_RADIUS
-from spqrel_nav_lite.mapio import FREE
-import os
-from scipy import ndimage
-from spqrel_nav_lite.mapio import load_map
-from spqrel_nav_lite.mapio import read_image
+from spqrel_nav_lite.mapio import FREE, load_map, read_image
 
 #: default extra clearance (m) on top of the robot radius
 DEFAULT_MARGIN = 0.1
@@ -60,7 +58,6 @@ DEFAULT_MARGIN = 0.1
 DEFAULT_SPACING = 4.0
 #: default minimum reach (m) of a dead-end branch beyond the free disc at its junction
 DEFAULT_MIN_DEAD_END = 1.0
-
 
 
 @dataclass
@@ -119,7 +116,36 @@ def extract_graph(occ, params=None, name="extracted"):
     """
     from skimage.morphology import remove_small_holes, skeletonize
     p = (params or ExtractionParams()).validate()
-    where = occ.yaml_path or name
+    res = occ.resolution
+    usable, dropped = _usable_piece(occ, p, occ.yaml_path or name)
+    hole_cells = max(4, int(round((1.0 / res) ** 2)))      # specks under 1 m2
+    filled = remove_small_holes(usable, area_threshold=hole_cells)
+    skel = skeletonize(filled)
+    if skel.sum() == 0:           # a piece a few cells wide: its centre
+        cy, cx = [int(round(v)) for v in ndimage.center_of_mass(usable)]
+        skel[cy, cx] = True
+    clear_px = occ.clearance / res
+    skel = prune(skel, clear_px, p.min_dead_end / res)
+    vert_px, edges = _skeleton_vertices(skel, usable, clear_px, p, res)
+    graph, edge_paths = _patrol_graph(occ, name, usable, vert_px, edges)
+    return ExtractionResult(graph, usable, skel, dropped, edge_paths)
+
+
+def _usable_piece(occ, p, where):
+    """Step 1 of the pipeline: the piece of usable space to extract from.
+
+    Args:
+        occ: the occupancy map; p: validated :class:`ExtractionParams`; where: the map's
+            name in error messages.
+
+    Returns:
+        (usable, dropped): the kept piece as an (h, w) bool mask, and the set-aside pieces as
+        (area m2, x, y), the smaller selected pieces (``p.largest``) before the ignored ones.
+
+    Raises:
+        PatrolInputError: no free cell, no piece wide enough for the robot, or more than one
+            selected piece without ``p.largest``.
+    """
     res = occ.resolution
     if not (occ.data == FREE).any():
         raise PatrolInputError(f"{where}: the map has no free cell (nothing to patrol)")
@@ -139,37 +165,52 @@ def extract_graph(occ, params=None, name="extracted"):
             f"{where}: the robot-usable free space is in {len(pieces)} disconnected pieces "
             f"({desc}); use --largest to extract the largest one")
     dropped += [describe_piece(lab, k, occ) for k in ignored]
-    usable = lab == pieces[0]
-    hole_cells = max(4, int(round((1.0 / res) ** 2)))      # specks under 1 m2
-    filled = remove_small_holes(usable, area_threshold=hole_cells)
-    skel = skeletonize(filled)
-    if skel.sum() == 0:           # a piece a few cells wide: its centre
-        cy, cx = [int(round(v)) for v in ndimage.center_of_mass(usable)]
-        skel[cy, cx] = True
-    clear_px = occ.clearance / res
-    skel = _prune(skel, clear_px, p.min_dead_end / res)
+    return lab == pieces[0], dropped
 
-    P = _pixel_graph(skel)
+
+def _skeleton_vertices(skel, usable, clear_px, p, res):
+    """Step 4 of the pipeline: the vertices on the pruned skeleton ``skel`` and the edges
+    joining them along its branches.
+
+    Args:
+        skel, usable: (h, w) bool masks; clear_px: the map's clearance in pixels; p:
+            validated :class:`ExtractionParams`; res: metres per pixel.
+
+    Returns:
+        (vert_px, edges): vertex pixels (row, col), every one in ``usable``, and edges
+        (u, w, approximate length in pixels) with u < w, possibly repeated, after merging
+        close vertices and dropping short loops and stub ends.
+    """
+    P = pixel_graph(skel)
     if P.number_of_nodes() == 0:
         rows, cols = np.nonzero(usable)
         P.add_node((int(rows[0]), int(cols[0])))
-    nodes, branches = _branches(P)
+    nodes, branches = split_branches(P)
     merge_px = max(2 * p.clearance, p.spacing / 3) / res
-    groups = _merge_close_nodes(P, nodes, branches, merge_px)
-    group_of = {q: gi for gi, g in enumerate(groups) for q in g}
+    groups = merge_close_nodes(P, nodes, branches, merge_px)
+    # group gi is vertex gi, at its member with the largest clearance (first in pixel order)
+    vert_px = [max(g, key=lambda q: (clear_px[q], -q[0], -q[1])) for g in groups]
+    edges = _branch_edges(branches, groups, vert_px, merge_px, p.spacing / res)
+    vert_px, edges = contract_short(vert_px, edges, merge_px / 2, clear_px)
+    vert_px, edges = drop_stub_ends(vert_px, edges, merge_px)
+    # snap vertices that fell on a filled hole back into usable space
+    if (~usable[tuple(np.array(vert_px).T)]).any():
+        _, (ir, ic) = ndimage.distance_transform_edt(~usable, return_indices=True)
+        vert_px = [q if usable[q] else (int(ir[q]), int(ic[q])) for q in vert_px]
+    return vert_px, edges
 
-    # vertex pixels: a group's member with the largest clearance (first in pixel order)
-    vert_px = []
-    vid_of_group = {}
-    for gi, g in enumerate(groups):
-        best = max(g, key=lambda q: (clear_px[q], -q[0], -q[1]))
-        vid_of_group[gi] = len(vert_px)
-        vert_px.append(best)
-    edges = []              # (u, w) in vertex ids, each once
-    spacing_px = p.spacing / res
+
+def _branch_edges(branches, groups, vert_px, merge_px, spacing_px):
+    """Split every skeleton branch between vertex groups into ``round(length / spacing_px)``
+    equal pieces (at least 1; 3 for a loop), appending the intermediate vertices' pixels to
+    ``vert_px`` (group gi is vertex gi). A branch from a group back to itself shorter than
+    ``3 merge_px`` is skipped. Returns the edges (u, w, piece length in pixels), u < w, in
+    branch order."""
+    group_of = {q: gi for gi, g in enumerate(groups) for q in g}
+    edges = []
     for br in branches:
         ga, gb = group_of[br[0]], group_of[br[-1]]
-        L = _length(br)
+        L = path_length(br)
         if ga == gb and L < 3 * merge_px:
             continue            # a link inside a junction cluster, a small loop
         pieces_n = max(1, int(round(L / spacing_px)))
@@ -177,24 +218,30 @@ def extract_graph(occ, params=None, name="extracted"):
             pieces_n = max(pieces_n, 3)     # a loop needs two intermediate vertices
         cum = np.concatenate([[0.0], np.cumsum([math.hypot(a[0] - b[0], a[1] - b[1])
                                                for a, b in zip(br, br[1:])])])
-        chain = [vid_of_group[ga]]
+        chain = [ga]
         for k in range(1, pieces_n):
             i = int(np.searchsorted(cum, L * k / pieces_n))
             q = br[min(i, len(br) - 1)]
             chain.append(len(vert_px))
             vert_px.append(q)
-        chain.append(vid_of_group[gb])
+        chain.append(gb)
         for u, w in zip(chain, chain[1:]):
             if u != w:
                 edges.append((min(u, w), max(u, w), L / pieces_n))
-    vert_px, edges = _contract_short(vert_px, edges, merge_px / 2, clear_px)
-    vert_px, edges = _drop_stub_ends(vert_px, edges, merge_px)
-    # snap vertices that fell on a filled hole back into usable space
-    if (~usable[tuple(np.array(vert_px).T)]).any():
-        _, (ir, ic) = ndimage.distance_transform_edt(~usable, return_indices=True)
-        vert_px = [q if usable[q] else (int(ir[q]), int(ic[q])) for q in vert_px]
+    return edges
 
-    # de-duplicate parallel edges (keep each pair once) and compute true path costs
+
+def _patrol_graph(occ, name, usable, vert_px, edges):
+    """Step 5 of the pipeline: the patrol graph on ``vert_px`` with one edge per vertex pair
+    of ``edges`` whose vertices a collision-free path in ``usable`` joins, costed by its
+    length in pixels (rounded, at least 1).
+
+    Returns:
+        (graph, edge_paths): the MultiDiGraph (header from ``occ`` and ``name``, vertices
+        numbered top-left first, each vertex's arcs in neighbour order) and the pulled path
+        [(col, row), ...] of each arc (u, w) in the new numbering.
+    """
+    res = occ.resolution
     best_edges = {}
     for u, w, approx in edges:
         if (u, w) not in best_edges:
@@ -223,8 +270,7 @@ def extract_graph(occ, params=None, name="extracted"):
             r2, c2 = vert_px[w]
             G.add_edge(v, w, direction=direction(c2 - c, r2 - r), cost_px=cost,
                        cost_m=cost * res)
-    G = _renumber(G, edge_paths)
-    return ExtractionResult(G[0], usable, skel, dropped, G[1])
+    return renumber(G, edge_paths)
 
 
 # ------------------------------------------------------------------------------ init-map

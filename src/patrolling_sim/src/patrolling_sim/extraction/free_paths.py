@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from patrolling_sim.extraction.skeleton import _length
+from patrolling_sim.extraction.skeleton import path_length
 
 
 def _visible(usable, a, b):
@@ -81,4 +81,4 @@ def _window_path(usable, a, b, extra):
         return math.inf, None
     tb = [(r + r0, c + c0) for r, c in m.traceback(sb)]
     pulled = pull_string(usable, tb)
-    return _length(pulled), pulled
+    return path_length(pulled), pulled

@@ -21,7 +21,7 @@ from patrolling_sim.model import map_bundle
 from patrolling_sim.common.cli import CliParser, run_main, setup_logging
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.model.graph import (PatrolGraph, graph_warnings, load_graph, printed_edge_count,
-                    undirected_edge_count, write_graph)
+                                        undirected_edge_count, write_graph)
 import os
 from patrolling_sim.extraction.coverage import check_graph
 from patrolling_sim.extraction.coverage import coverage

@@ -8,7 +8,7 @@ import networkx as nx
 import numpy as np
 
 
-def _pixel_graph(skel):
+def pixel_graph(skel):
     """networkx Graph of skeleton pixels (row, col), 8-connected, weights 1 or sqrt(2).
     Diagonal links that duplicate a 4-connected detour are left out (no tiny triangles)."""
     G = nx.Graph()
@@ -26,7 +26,7 @@ def _pixel_graph(skel):
     return G
 
 
-def _branches(P):
+def split_branches(P):
     """Split a pixel graph into branches: chains of degree-2 pixels between 'node' pixels
     (degree != 2). Returns (nodes, branches); each branch is a list of pixels from one node to
     another (both included). A pure cycle gets its lowest pixel as a node."""
@@ -58,15 +58,15 @@ def _branches(P):
     return nodes, branches
 
 
-def _length(path):
+def path_length(path):
     return sum(math.hypot(a[0] - b[0], a[1] - b[1]) for a, b in zip(path, path[1:]))
 
 
-def _prune(skel, clearance_px, min_dead_end_px):
+def prune(skel, clearance_px, min_dead_end_px):
     """Remove dead-end branches reaching less than ``min_dead_end_px`` beyond the free disc
     of their junction (one pass; see the module docstring)."""
-    P = _pixel_graph(skel)
-    nodes, branches = _branches(P)
+    P = pixel_graph(skel)
+    nodes, branches = split_branches(P)
     deg = dict(P.degree())
     out = skel.copy()
     if len(branches) <= 1:
@@ -79,7 +79,7 @@ def _prune(skel, clearance_px, min_dead_end_px):
         junction = b if ends[0] == a else a
         if deg[junction] < 3:
             continue
-        if _length(br) - clearance_px[junction] < min_dead_end_px:
+        if path_length(br) - clearance_px[junction] < min_dead_end_px:
             for p in br:
                 if p != junction:
                     out[p] = False
@@ -88,13 +88,13 @@ def _prune(skel, clearance_px, min_dead_end_px):
     return skeletonize(out)
 
 
-def _merge_close_nodes(P, nodes, branches, merge_px):
+def merge_close_nodes(P, nodes, branches, merge_px):
     """Group nodes joined by a branch shorter than ``merge_px`` (and adjacent node pixels):
     each group becomes one vertex."""
     U = nx.Graph()
     U.add_nodes_from(nodes)
     for br in branches:
-        if br[0] != br[-1] and _length(br) < merge_px and P.degree(br[0]) != 1 \
+        if br[0] != br[-1] and path_length(br) < merge_px and P.degree(br[0]) != 1 \
                 and P.degree(br[-1]) != 1:
             U.add_edge(br[0], br[-1])
     groups = [sorted(g) for g in nx.connected_components(U)]

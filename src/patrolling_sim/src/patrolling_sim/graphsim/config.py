@@ -21,7 +21,6 @@ TRAVEL_MODES = ("graph", "euclidean")
 WRITE_FLUSH_EVERY = 1.0
 
 
-
 @dataclass
 class GraphSimConfig:
     """Inputs of one graph-mode run (defaults as the ROS runner's)."""
@@ -42,7 +41,8 @@ class GraphSimConfig:
     interference: bool = True       # robots within 2 m interfere (the original's rule)
     travel: str = "graph"           # "graph": shortest graph path; "euclidean": straight line
     comm: str = "perfect"           # communication model (patrolling_sim.scenarios.comm, --comm)
-    attrition: str = "none"         # robot failures (patrolling_sim.scenarios.attrition, --attrition)
+    attrition: str = "none"         # robot failures (patrolling_sim.scenarios.attrition,
+    #                                 --attrition)
 
     def validate(self):
         if self.alg not in REGISTRY:

@@ -1,11 +1,11 @@
-"""The navigation feedback of the graph world (:mod:`patrolling_sim.graphsim.simulator`), its one job:
-at every tick of the FEEDBACK_PERIOD lattice (move_base's 5 Hz) each moving robot publishes
+"""The navigation feedback of the graph world (:mod:`patrolling_sim.graphsim.simulator`), its
+one job: at every tick of the FEEDBACK_PERIOD lattice (move_base's 5 Hz) each moving robot publishes
 its position and its core evaluates interference against the robots of lower id
 (``docs/protocol.md``, "Graph mode"). By default only the ticks and checks that can find an
 interference are simulated; the results are those of simulating every tick (a test checks).
 
-:class:`FeedbackTicks` is a mixin of :class:`~patrolling_sim.graphsim.simulator.GraphSimulator`; it
-uses the simulator's ``t``, ``cfg``, ``robots``, ``team_pos``, ``_due``,
+:class:`FeedbackTicks` is a mixin of :class:`~patrolling_sim.graphsim.simulator.GraphSimulator`;
+it uses the simulator's ``t``, ``cfg``, ``robots``, ``team_pos``, ``_due``, ``_pair_due``,
 ``_tick``, ``_last_tick``, ``_closing_per_tick``, ``perfect_comm``, ``skip_idle_ticks`` and
 :meth:`_share_position`; the run loop calls :meth:`next_tick_time` and :meth:`run_tick`.
 """
@@ -85,22 +85,19 @@ class FeedbackTicks:
         moves faster than v = ``speed`` x graph.max_stretch() in the plane, so a pair at
         distance d needs at least (d - INTERFERENCE_DIST) / (2 v) s). A moving robot i is due
         at the first due tick of its pairs with lower ids, or at the end of its 10 s quiet
-        period. A due robot publishes its position; for each of its due pairs the robot of
-        lower id publishes its own if moving (the values a full tick would publish), their
-        distance is measured and the pair's next due tick computed; the core is asked only if
-        one of them is within INTERFERENCE_DIST (then the published positions of all its
-        lower ids are brought to this tick first, as a full tick has them). A robot starting
-        a trip is due at the next tick (:meth:`wake`). Ticks at which no robot is due are
-        not simulated.
+        period. A due robot publishes its position; its due pairs are measured
+        (:meth:`_measure_due_pairs`); the core is asked only if one of them is within
+        INTERFERENCE_DIST (then the published positions of all its lower ids are brought to
+        this tick first, as a full tick has them). A robot starting a trip is due at the next
+        tick (:meth:`wake`). Ticks at which no robot is due are not simulated. Returns the
+        next tick any moving robot is due (inf if none).
 
-        Why per pair: on a small map with 12 robots some robot is near another at almost
-        every tick, and re-measuring all its pairs then made the ticks a fifth of a reference
-        run's CPU; one close pair now costs one measurement."""
+        Due ticks are kept per pair, not per robot: with many robots on a small map some
+        robot is near another at almost every tick, and one close pair then costs one
+        measurement instead of all of the robot's pairs."""
         t = self.t
-        robots, due, pair_due = self.robots, self._due, self._pair_due
+        robots, due = self.robots, self._due
         team = self.team_pos
-        d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
-        per_tick = self._closing_per_tick
         fresh = {}                                # rid -> position at this tick (moving)
         nxt = math.inf                            # the next tick any moving robot is due
         for r in robots:
@@ -125,28 +122,7 @@ class FeedbackTicks:
                     nxt = due[i]
                 continue
             x, y = xy
-            near = False                          # a published position within reach
-            pd = pair_due[i]
-            first = math.inf                      # the first due tick of i's pairs
-            for j in range(i):
-                dj = pd[j]
-                if dj <= k:
-                    rj = robots[j]
-                    if rj.pieces is not None:
-                        p = fresh.get(j)
-                        if p is None:
-                            p = fresh[j] = team[j] = rj.xy_at(t)
-                        published = True
-                    else:
-                        p = rj.xy                 # standing: where it stood (published) or
-                        published = j in team     # where it starts (not yet published)
-                    d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
-                    if published and d2 <= d2max:
-                        near = True
-                    q = int((math.sqrt(d2) - INTERFERENCE_DIST) / per_tick)
-                    dj = pd[j] = k + (q if q > 1 else 1)
-                if dj < first:
-                    first = dj
+            near, first = self._measure_due_pairs(k, i, x, y, fresh)
             if near:
                 for j in range(i):                # the core reads every lower id's position
                     rj = robots[j]
@@ -160,3 +136,37 @@ class FeedbackTicks:
             if due[i] < nxt:
                 nxt = due[i]
         return nxt
+
+    def _measure_due_pairs(self, k, i, x, y, fresh):
+        """Measure the pairs of robot ``i`` (at x, y) with lower ids j due at tick ``k``: a
+        moving j publishes its position at this tick (recorded in ``fresh`` and
+        ``team_pos``, once per tick), a standing one is where it stands; each such pair's
+        next due tick becomes k + max(1, the ticks it needs to close to INTERFERENCE_DIST).
+        Returns (near, first): whether a published position is within INTERFERENCE_DIST, and
+        the first due tick of all i's pairs (inf if i has none)."""
+        t, robots, team = self.t, self.robots, self.team_pos
+        d2max = INTERFERENCE_DIST * INTERFERENCE_DIST
+        per_tick = self._closing_per_tick
+        near = False                              # a published position within reach
+        pd = self._pair_due[i]
+        first = math.inf                          # the first due tick of i's pairs
+        for j in range(i):
+            dj = pd[j]
+            if dj <= k:
+                rj = robots[j]
+                if rj.pieces is not None:
+                    p = fresh.get(j)
+                    if p is None:
+                        p = fresh[j] = team[j] = rj.xy_at(t)
+                    published = True
+                else:
+                    p = rj.xy                     # standing: where it stood (published) or
+                    published = j in team         # where it starts (not yet published)
+                d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
+                if published and d2 <= d2max:
+                    near = True
+                q = int((math.sqrt(d2) - INTERFERENCE_DIST) / per_tick)
+                dj = pd[j] = k + (q if q > 1 else 1)
+            if dj < first:
+                first = dj
+        return near, first

@@ -1,11 +1,13 @@
-"""A robot's body in the graph world (:mod:`patrolling_sim.graphsim.simulator`): a point moving along
-the patrol graph (or in straight lines), and the :class:`~patrolling_sim.agent.core.Effects`
-its core acts through (``docs/protocol.md``, "Graph mode")."""
+"""A robot's body in the graph world (:mod:`patrolling_sim.graphsim.simulator`): a point moving
+along the patrol graph (or in straight lines), and the
+:class:`~patrolling_sim.agent.core.Effects` its core acts through (``docs/protocol.md``,
+"Graph mode")."""
 import bisect
 import math
 
 from patrolling_sim.agent.core import Effects
 from patrolling_sim.graphsim.config import MIN_TRIP
+
 
 class Robot(Effects):
     """One robot's body in the graph world and the :class:`Effects` its core acts through.

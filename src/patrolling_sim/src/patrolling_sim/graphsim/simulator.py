@@ -33,17 +33,19 @@ from typing import Callable, Optional, Sequence
 
 from patrolling_sim.common import paths
 from patrolling_sim.monitor import run_status
-from patrolling_sim.agent.core import FIRST_ALGORITHM_TYPE, GO, MONITOR_ID, agent_seed, build_agent
-from patrolling_sim.algorithms.base import MSG_FAILURE, MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
+from patrolling_sim.agent.core import FIRST_ALGORITHM_TYPE, GO, MONITOR_ID
+from patrolling_sim.agent.factory import agent_seed, build_agent
+from patrolling_sim.algorithms.base import MSG_FAILURE
+from patrolling_sim.common.protocol import MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
 from patrolling_sim.common.errors import PatrolInputError
-from patrolling_sim.graphsim.config import (FEEDBACK_PERIOD, MIN_TRIP, TIMERESULTS_PERIOD,  # noqa: F401
-                           TRAVEL_MODES, WRITE_FLUSH_EVERY, GraphSimConfig)
+from patrolling_sim.graphsim.config import (FEEDBACK_PERIOD, TIMERESULTS_PERIOD, WRITE_FLUSH_EVERY,
+                                            GraphSimConfig)
 from patrolling_sim.graphsim.feedback import FeedbackTicks
 from patrolling_sim.graphsim.motion import Robot
 from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.monitor.core import MonitorCore, Stats
-from patrolling_sim.monitor.results import (ResultWriter, RunInfo, claim_prefix, default_prefix,  # noqa: F401
-                      hostname, timestamp)
+from patrolling_sim.monitor.results import (ResultWriter, RunInfo, claim_prefix, default_prefix,
+                                            hostname)
 from patrolling_sim.scenarios.scenario import check_scenario
 from patrolling_sim.scenarios.scenario import is_perfect
 from patrolling_sim.scenarios.scenario import write_scenario
@@ -51,6 +53,7 @@ from patrolling_sim.startpos.initial_poses import load_initial_poses
 from patrolling_sim.startpos.optimised import write_start_poses
 from patrolling_sim.startpos.resolve import start_positions
 from spqrel_nav_lite.mapio import load_map
+
 
 def start_vertices_of(cfg: GraphSimConfig, pgraph: PatrolGraph):
     """The start vertex of each robot of ``cfg`` on ``pgraph``: the vertices nearest to the

@@ -112,7 +112,8 @@ class MonitorCore:
         self.max_idl = 0.0
         self.interferences = 0
         self.cycles = 0
-        #: robot id -> time since GO of its last visit report (the FAIL rule, docs/monitor.md "Run statuses")
+        #: robot id -> time since GO of its last visit report (the FAIL rule, docs/monitor.md
+        #: "Run statuses")
         self.last_report: Dict[int, float] = {}
         #: robot id -> its longest closed interval without a visit report (see silences())
         self._longest_silence: Dict[int, float] = {}

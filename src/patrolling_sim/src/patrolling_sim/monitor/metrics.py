@@ -211,7 +211,7 @@ class FailureImpact:
     before: float                  # time average over the window before the failure
     after: float                   # time average over the settled part after it
     settle_time: Optional[float]   # s after the failure until the smoothed curve stays within
-                                   # the band around `after`; None if it never does
+    #                                the band around `after`; None if it never does
 
 
 def failure_impact(times, series, t_fail: float, t_end: float, window: float = 600.0,

@@ -139,13 +139,15 @@ class ResultWriter:
     """Writes one experiment's files under ``prefix`` (parent folders are created).
 
     ``idleness.csv`` and ``timeresults.csv`` are created with their headers at once,
-    ``results.txt`` empty (a block is appended per complete patrol cycle); ``info.csv`` by :meth:`write_info`, written to a
-    temporary file and renamed, so it is either complete or absent.
+    ``results.txt`` empty (a block is appended per complete patrol cycle); ``info.csv`` by
+    :meth:`write_info`, written to a temporary file and renamed, so it is either complete or
+    absent.
 
     Rows and ``results.txt`` blocks are flushed at once when ``flush_every`` is 0 (the ROS
     monitor: a node killed with SIGKILL loses nothing), otherwise at most ``flush_every``
-    wall seconds after they were written (graph mode: a flush per row was 5 % of a graph run's CPU time; a SIGKILL loses
-    at most that much wall time of rows, any other ending closes the files).
+    wall seconds after they were written (graph mode: a flush per row was 5 % of a graph run's
+    CPU time; a SIGKILL loses at most that much wall time of rows, any other ending closes the
+    files).
     """
 
     def __init__(self, prefix: str, info: RunInfo, flush_every: float = 0.0):

@@ -10,11 +10,12 @@ What the original's construction *does*, with its ``srand``/``rand`` draws (emul
    2000, 3000, 4000; the costliest cycle wins.
 2. :func:`longest_path`: the same walk between every pair of degree-1 vertices (seed 1000).
 3. The main route is the cycle if it has at least V // 2 entries, else the path.
-4. :func:`outbound_walk` follows the main route and inserts, where an edge off it is unused,
-   a detour of at most ``num_arcs`` new vertices back to where it left; it succeeds if every
-   edge was used. :func:`cyclic_route` takes the smallest such ``num_arcs`` as the original
-   (1; else L, 1.5 L, 2 L ... for a main route of L entries, at most 100 tries; then
-   bisection); a cycle is used as it is, a path is walked back (2W - 1 entries).
+4. :func:`~patrolling_sim.planning.route_detours.outbound_walk` follows the main route and
+   inserts, where an edge off it is unused, a detour of at most ``num_arcs`` new vertices
+   back to where it left; it succeeds if every edge was used. :func:`cyclic_route` takes the
+   smallest such ``num_arcs`` as the original (1; else L, 1.5 L, 2 L ... for a main route of
+   L entries, at most 100 tries; then bisection); a cycle is used as it is, a path is walked
+   back (2W - 1 entries).
 
 Memory the original reads but never wrote reads as a fresh array: a neighbour slot past a
 vertex's list (up to its 8) as 0, any other unwritten slot as -1 (or, where that cannot be
@@ -22,20 +23,14 @@ modelled, :class:`RouteConstructionError`). The original bounds no search; here 
 stops after ``MAX_STEPS`` steps with that error too (the caller, CGG, then falls back to
 CGG_TSP's tour). See docs/fidelity.md, CGG.
 """
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Tuple
 
+from patrolling_sim.planning.route_detours import (MAX_STEPS, SLOTS, RouteConstructionError,
+                                                   outbound_walk)
 from patrolling_sim.planning.routes import CRand
 
 #: seed of the original's searches
 SEED = 1000
-#: steps allowed to one search (a walk, an outbound walk) before giving up
-MAX_STEPS = 2_000_000
-#: neighbour slots per vertex in the original's graph structure
-SLOTS = 8
-
-
-class RouteConstructionError(RuntimeError):
-    """The construction cannot produce a route (see the module docstring)."""
 
 
 class _Web:
@@ -174,170 +169,6 @@ def longest_path(web) -> Tuple[Optional[List[int]], int]:
                 if cost > best_cost:
                     best, best_cost = path, cost
     return best, best_cost
-
-
-def _on_route_edge(a, b, cp):
-    """True if a-b are consecutive somewhere on the main route."""
-    for i, v in enumerate(cp):
-        if v == a and ((i > 0 and cp[i - 1] == b) or (i < len(cp) - 1 and cp[i + 1] == b)):
-            return True
-    return False
-
-
-def outbound_walk(web, cp: Sequence[int], num_arcs: int) -> Tuple[List[int], bool]:
-    """The main route ``cp`` with detours of at most ``num_arcs`` new vertices (flags
-    cleared first). Returns (walk, every edge walked). The detour and return lists are the
-    original's fixed arrays, read as it reads them (unwritten slots hold -1)."""
-    web.clear()
-    cp = list(cp)
-    n_cp = len(cp)
-    ida = [cp[0]]
-    desvio = [-1] * (web.n * 5 + 8)
-    regresso = [-1] * (web.n + 8)
-    lista = [-1] * SLOTS
-    idx_cp, idx_viz_cp, idx_reg, j = 0, -1, -1, 0
-    steps = 0
-    while idx_cp < n_cp - 1:
-        ult = cp[idx_cp]
-        prox = cp[idx_cp + 1]
-        j = 0
-        while j < len(web.nb[ult]):
-            w = web.nb[ult][j]
-            if not web.vis[ult][j] and not _on_route_edge(ult, w, cp):
-                prox = w
-                break
-            if w == cp[idx_cp + 1]:
-                idx_viz_cp = j
-            j += 1
-        if prox == cp[idx_cp + 1]:                  # stay on the main route
-            web.set_arc(ult, web.nb[ult][idx_viz_cp], True, both_all=True)
-            ida.append(prox)
-            idx_cp += 1
-            if prox == cp[-1]:
-                break
-            continue
-        # a detour from ult through prox (j: prox's slot in ult's list)
-        arcs, no_ant = 0, ult
-        i_d, i_r = 1, 0
-        desvio[0] = ult
-        on_cp = web.nb[ult][j] in cp
-        leave = on_cp
-        while arcs < num_arcs:
-            steps += 1
-            if steps > MAX_STEPS:
-                raise RouteConstructionError("CGG route: detour step bound exceeded")
-            direct, marked = False, False
-            for i, w in enumerate(web.nb[prox]):
-                if w == no_ant and not web.vis[prox][i]:
-                    web.vis[prox][i] = True
-                    marked = True
-                if w == ult:
-                    direct, idx_reg = True, i
-            if marked:
-                target = web.slot(no_ant, j)
-                for i, w in enumerate(web.nb[no_ant]):
-                    if w == target and not web.vis[no_ant][i]:
-                        web.vis[no_ant][i] = True
-            desvio[i_d] = prox
-            if prox in desvio[:max(i_d - 1, 0)]:    # a vertex already on the detour
-                back = regresso[i_r - 1] if i_r > 0 else -1
-                web.odd += i_r <= 0
-                if back not in web.nb[prox]:
-                    regresso[i_r] = no_ant
-                    i_r += 1
-            else:
-                regresso[i_r] = no_ant
-                i_r += 1
-                arcs += 1
-            i_d += 1
-            if on_cp:                               # reached the main route: step back
-                if i_r <= 0:
-                    raise RouteConstructionError("CGG route: empty return list read")
-                desvio[i_d] = regresso[i_r - 1]
-                i_d += 1
-                i_r -= 1
-                no_ant, prox = prox, no_ant
-            on_cp = False
-            if arcs >= num_arcs:
-                if direct and i_r > 0:              # straight back to ult
-                    if idx_reg < len(web.vis[prox]):
-                        web.vis[prox][idx_reg] = True
-                    else:
-                        web.odd += 1
-                    for i, w in enumerate(web.nb[ult]):
-                        if w == prox:
-                            web.vis[ult][i] = True
-                    desvio[i_d] = ult
-                    i_d += 1
-                    break
-                leave = True
-            else:
-                i_list = 0
-                for i, w in enumerate(web.nb[prox]):
-                    if not web.vis[prox][i] and not _on_route_edge(prox, w, cp):
-                        lista[i_list] = w
-                        i_list += 1
-                i = 0
-                while i_list > 1:                   # drop main-route vertices (as it does)
-                    if i >= SLOTS:
-                        raise RouteConstructionError("CGG route: neighbour list overrun")
-                    web.odd += i >= i_list
-                    if lista[i] in cp:
-                        lista[i:i_list - 1] = lista[i + 1:i_list]
-                        i_list -= 1
-                    i += 1
-                    if i == i_list:
-                        break
-                if i_list == 1 and lista[0] in cp:
-                    on_cp = True
-                if i_list <= 0:                     # dead end: walk back to a free vertex
-                    i = i_r - 1
-                    while i >= 0:
-                        j = web.free(regresso[i])
-                        if j > 0:
-                            break
-                        desvio[i_d] = regresso[i]
-                        i_d += 1
-                        i_r -= 1
-                        i -= 1
-                    if i <= 0:
-                        leave = True
-                    else:
-                        j = 0
-                        while j < i_d:
-                            if desvio[j] == regresso[i]:
-                                prox, no_ant = desvio[j], desvio[j + 1]
-                                if no_ant < 0:
-                                    raise RouteConstructionError(
-                                        "CGG route: unwritten detour slot read")
-                                break
-                            j += 1
-                        i_r = i
-                else:
-                    if i_list == 1:
-                        chosen = lista[0]
-                    else:
-                        least = None
-                        for i in range(i_list):
-                            j = web.free(lista[i])
-                            if least is None or j < least:
-                                chosen, least = lista[i], j
-                    j = 0
-                    while j < len(web.nb[prox]):
-                        if web.nb[prox][j] == chosen and not web.vis[prox][j]:
-                            break
-                        j += 1
-                    no_ant, prox = prox, chosen
-            if leave:                               # the way back closes the detour
-                for i in range(i_r - 1, -1, -1):
-                    desvio[i_d] = regresso[i]
-                    i_d += 1
-                break
-        ida.extend(desvio[1:i_d])
-        steps += 1
-        if steps > MAX_STEPS:
-            raise RouteConstructionError("CGG route: detour step bound exceeded")
-    return ida, all(all(row) for row in web.vis)
 
 
 def cyclic_route(pgraph) -> Tuple[List[int], dict]:

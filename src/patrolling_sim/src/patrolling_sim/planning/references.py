@@ -5,8 +5,8 @@ They tell a user how far an algorithm is from what a well-organised team could d
 - **best closed tour** ``L`` (m): the shortest closed walk through every vertex we can find —
   exact (Held-Karp dynamic programming over shortest-path costs) for graphs of at most
   :data:`EXACT_MAX_VERTICES` vertices, otherwise the best of networkx's Christofides tour and
-  our own nearest-neighbour + 2-opt/Or-opt tour (:func:`patrolling_sim.planning.routes.closed_route`),
-  refined again by 2-opt/Or-opt;
+  our own nearest-neighbour + 2-opt/Or-opt tour
+  (:func:`patrolling_sim.planning.routes.closed_route`), refined again by 2-opt/Or-opt;
 - **cyclic reference** ``L / (k v)`` (s): the idleness every vertex reaches at most when k
   robots at speed v are evenly spaced along that tour (Chevaleyre 2004's bound for cyclic
   strategies);

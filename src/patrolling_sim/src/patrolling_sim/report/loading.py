@@ -27,7 +27,6 @@ import pandas as pd
 
 from patrolling_sim.common.errors import PatrolInputError
 import yaml
-from patrolling_sim.common import paths
 from patrolling_sim.model import map_bundle
 from patrolling_sim.monitor import run_status as rs
 from patrolling_sim.monitor.metrics import compute_metrics
@@ -100,7 +99,8 @@ def parse_info(path):
         raise PatrolInputError(f"{path}: cannot read info file ({e.__class__.__name__})") from None
     lines = [ln for ln in text.splitlines() if ln.strip()]
     if not lines:
-        raise PatrolInputError(f"{path}: empty info file (expected one line of 22 ';'-separated fields)")
+        raise PatrolInputError(f"{path}: empty info file (expected one line of 22 "
+                               "';'-separated fields)")
     if len(lines) > 1:
         raise PatrolInputError(f"{path}: {len(lines)} lines, expected one line of 22 fields")
     fields = lines[0].split(";")
@@ -149,7 +149,8 @@ def read_idleness(path):
     except FileNotFoundError:
         raise PatrolInputError(f"{path}: idleness file not found") from None
     except (OSError, UnicodeDecodeError) as e:
-        raise PatrolInputError(f"{path}: cannot read idleness file ({e.__class__.__name__})") from None
+        raise PatrolInputError(
+            f"{path}: cannot read idleness file ({e.__class__.__name__})") from None
     if header.split(";") != list(IDLENESS_COLUMNS):
         raise PatrolInputError(f"{path}: header is '{header[:80]}', expected "
                                f"'{';'.join(IDLENESS_COLUMNS)}'")
@@ -182,13 +183,14 @@ def read_idleness(path):
         neg = frame[col] < 0
         if neg.any():
             i = int(np.flatnonzero(neg.to_numpy())[0])
-            raise PatrolInputError(f"{path}:{i + 2}: column {col} is negative ('{df[col].iloc[i]}')")
+            raise PatrolInputError(
+                f"{path}:{i + 2}: column {col} is negative ('{df[col].iloc[i]}')")
     return frame
 
 
 def _read_idleness_numeric(path):
     """The idleness frame of a well-formed file, parsed as numbers at once (4.7 against
-    12.5 ms for a 4-robot hour on cumberland, docs/benchmarks/campaign.md); None if anything
+    12.5 ms for a 4-robot hour on cumberland, bench/notes/campaign.md); None if anything
     is off, and the checked path then finds and names the bad line."""
     try:
         df = pd.read_csv(path, sep=";", header=0, skip_blank_lines=True,

@@ -157,7 +157,8 @@ def histogram_figure(title, series, colors):
     series = [s for s in series if len(s[2])] or series[:1]
     k = len(series)
     fig = Figure(figsize=(9.0, 1.2 + 1.6 * k))
-    pooled = np.concatenate([s for _, _, s in series]) if series and len(series[0][2]) else np.array([])
+    pooled = (np.concatenate([s for _, _, s in series]) if series and len(series[0][2])
+              else np.array([]))
     cut = float(np.percentile(pooled, TAIL_QUANTILE)) if pooled.size else 1.0
     full = float(pooled.max()) if pooled.size else 1.0
     bins, width = histogram_bins(pooled[pooled <= cut] if pooled.size else pooled,

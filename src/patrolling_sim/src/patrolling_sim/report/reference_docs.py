@@ -4,11 +4,11 @@
 if present, see ``docs/campaigns.md``) and returns the pages in memory; :func:`write_docs`
 writes them. For every map: per team size, one table algorithm x metrics (mean ± SD over the
 seeds of the runs that ended with ``TIMEOUT``, with their count), the theoretical references
-of :mod:`patrolling_sim.planning.references` (best closed tour, cyclic ``L/(k v)``, partition), and one
-figure (idleness vs team size per algorithm, the references as lines). Runs not done yet are
-counted (the pages say PARTIAL); runs that ended otherwise (CYCLES, FAIL, CRASHED, ERROR ...)
-are excluded from the means and counted per cell, never mixed in. The metric definitions are
-those of ``docs/metrics.md``.
+of :mod:`patrolling_sim.planning.references` (best closed tour, cyclic ``L/(k v)``,
+partition), and one figure (idleness vs team size per algorithm, the references as lines).
+Runs not done yet are counted (the pages say PARTIAL); runs that ended otherwise (CYCLES,
+FAIL, CRASHED, ERROR ...) are excluded from the means and counted per cell, never mixed in.
+The metric definitions are those of ``docs/metrics.md``.
 """
 import datetime
 import io
@@ -194,12 +194,12 @@ def _map_page(map_name, stats, refs, seeds, header):
         "seeds; **n\\*** marks a cell with fewer seeds than the campaign's; *excl.* counts runs "
         "that ended otherwise, left out; a run that made no visit at all has no idleness: its "
         "cell says so and averages the others). Metric definitions: `docs/metrics.md`. References: "
-        "`patrolling_sim.planning.references` (`docs/metrics.md`), at the runs' speed, no goal wait: the "
-        "cyclic reference is the idleness of every visit of k robots evenly spaced on the best "
-        "closed tour (so it applies to the average, worst and max idleness; a reference, not a "
-        "bound: the original's average counts every visit, a route's repeated passes included), "
-        "the partition reference the worst idleness of one robot per part of a balanced "
-        "partition.", "",
+        "`patrolling_sim.planning.references` (`docs/metrics.md`), at the runs' speed, no goal "
+        "wait: the cyclic reference is the idleness of every visit of k robots evenly spaced on "
+        "the best closed tour (so it applies to the average, worst and max idleness; a "
+        "reference, not a bound: the original's average counts every visit, a route's repeated "
+        "passes included), the partition reference the worst idleness of one robot per part of "
+        "a balanced partition.", "",
         f"![{map_name}]({map_name}.png)", ""]
     for n in sorted(refs):
         r = refs[n]

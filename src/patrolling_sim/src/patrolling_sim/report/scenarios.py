@@ -11,7 +11,6 @@ from matplotlib.figure import Figure
 
 from patrolling_sim.report import html as H
 from patrolling_sim.report.plots import TIME_LABEL, algorithm_colors, save, slug
-from patrolling_sim.common import paths
 from patrolling_sim.model import map_bundle
 from patrolling_sim.monitor.metrics import graph_idleness_series
 from patrolling_sim.scenarios.scenario import read_scenario
@@ -113,8 +112,8 @@ def scenario_section(runs, out_dir):
     body += "<details><summary>every run</summary>"
     body += H.table(header, rows, text_cols=(0, 1, 3, 4)) + "</details>"
     files = []
-    for k, ((mp, n_r, comm, sched), members) in enumerate(sorted(groups.items(),
-                                                                  key=lambda kv: str(kv[0]))):
+    for k, ((mp, n_r, comm, sched), members) in enumerate(
+            sorted(groups.items(), key=lambda kv: str(kv[0]))):
         curves, per_alg, fails = {}, {}, []
         for r, doc, c, n in members:
             if r.visits is None or not n:

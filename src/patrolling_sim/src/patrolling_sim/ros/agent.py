@@ -25,13 +25,15 @@ from std_srvs.srv import Empty
 
 from patrolling_sim import algorithms
 from patrolling_sim.common import paths
-from patrolling_sim.agent.core import Effects, build_agent
+from patrolling_sim.agent.core import Effects
+from patrolling_sim.agent.factory import build_agent
 from patrolling_sim.algorithms.base import MSG_FAILURE
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.model.graph import PatrolGraph, load_graph
 from patrolling_sim.ros.agent_scenario import AgentScenario
-from patrolling_sim.ros.agent_params import (AgentError, clamp_int16, float_param, parse_ids,  # noqa: F401
-                           parse_robot_frame, read_common_params, start_vertex_from)
+from patrolling_sim.ros.agent_params import (AgentError, clamp_int16, float_param, parse_ids,
+                                             parse_robot_frame, read_common_params,
+                                             start_vertex_from)
 import sys
 
 SERVER_LOG_PERIOD = 5.0        # s between "waiting for move_base" log lines

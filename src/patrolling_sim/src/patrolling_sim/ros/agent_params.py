@@ -7,7 +7,7 @@ import re
 import rospy
 
 from patrolling_sim import algorithms
-from patrolling_sim.algorithms.base import INT16_MAX
+from patrolling_sim.common.protocol import INT16_MAX
 
 INT16_MIN = -32768
 _ROBOT_FRAME = re.compile(r"robot_(\d+)(?:/|$)")
@@ -53,7 +53,6 @@ def start_vertex_from(graph, initial_pos, robot_id):
     return graph.nearest_vertex(x, y), (x, y)
 
 
-
 def float_param(name, default, minimum=None):
     """ROS parameter ``name`` as a float (>= ``minimum``); AgentError if it is not."""
     raw = rospy.get_param(name, default)
@@ -91,7 +90,6 @@ def read_common_params():
     return alg, team_size, seed, params
 
 
-
 def parse_ids(tokens):
     """Robot ids from ``['0', '2', '5-7']`` -> [0, 2, 5, 6, 7] (sorted, no duplicates)."""
     ids = set()
@@ -105,4 +103,3 @@ def parse_ids(tokens):
             raise AgentError(f"robot id range '{tok}' is empty")
         ids.update(range(a, b + 1))
     return sorted(ids)
-

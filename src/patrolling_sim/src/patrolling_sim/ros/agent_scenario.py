@@ -1,9 +1,9 @@
 """The scenario of one ROS agent: its communication model and its scheduled failures
 (docs/scenarios.md, "ROS mode").
 
-Communication: the agent core applies the model (:mod:`patrolling_sim.scenarios.comm`) where a message
-is *received* (on ROS a broadcast is one publish, so per-link decisions belong to the
-receiver); this module reads ``/comm_model`` and hands the core the model's spec (seeded by
+Communication: the agent core applies the model (:mod:`patrolling_sim.scenarios.comm`) where
+a message is *received* (on ROS a broadcast is one publish, so per-link decisions belong to
+the receiver); this module reads ``/comm_model`` and hands the core the model's spec (seeded by
 the core from the agent's own seed, i.e. from the run's seed), for the range model the
 occupancy map and the robots' true positions.
 
@@ -23,10 +23,9 @@ import time
 
 import rospy
 
-from patrolling_sim.common import paths
 from patrolling_sim.model import map_bundle
 from patrolling_sim.agent.core import END, GO, MONITOR_ID
-from patrolling_sim.algorithms.base import MSG_INIT
+from patrolling_sim.common.protocol import MSG_INIT
 from patrolling_sim.scenarios.attrition import parse_attrition
 from patrolling_sim.scenarios.comm import parse_comm
 from patrolling_sim.common.errors import PatrolInputError
@@ -87,7 +86,7 @@ class AgentScenario:
         if self.active:
             rospy.loginfo("robot %d: scenario comm %s, failures at %s", self.id, self.described,
                           ", ".join(f"{f.t:g} s" + (f" (back at {f.back:g} s)" if f.repair
-                                                     else "") for f in self.schedule)
+                                                    else "") for f in self.schedule)
                           or "none")
             threading.Thread(target=self._counters_loop, daemon=True,
                              name=f"counters_robot_{self.id}").start()

@@ -22,11 +22,12 @@ import sys
 
 from patrolling_sim.common.cli import CliParser, run_main, setup_logging
 from patrolling_sim.common.errors import PatrolInputError
-from patrolling_sim.runner.batch import BatchInterrupted, SignalHold, load_batch, print_batch_table, run_batch
+from patrolling_sim.runner.batch import (BatchInterrupted, SignalHold, load_batch,
+                                         print_batch_table, run_batch)
 from patrolling_sim.runner.config import ExperimentConfig, from_positional, load_config_file
 from patrolling_sim.runner.gui import run_gui
 from patrolling_sim.runner.supervisor import Experiment
-from patrolling_sim.runner.supervisor import read_info
+from patrolling_sim.runner.outcome import read_info
 from patrolling_sim.scenarios.scenario import read_scenario
 from patrolling_sim.runner.video import assemble_video
 

@@ -9,7 +9,8 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     alg          algorithm short name (RAND, CR, HCR, HPCC, CGG, MSP, GBS, SEBS, CBLS,
                  DTAG, DTAP, or any registered strategy)             required
     initpos      "default", a lettered variant of params/initial_poses.txt ("a", "b", ...) or
-                 "optimised" (start vertices chosen for the algorithm, patrolling_sim.startpos.optimised)
+                 "optimised" (start vertices chosen for the algorithm,
+                 patrolling_sim.startpos.optimised)
     loc          AMCL | fake_localization                            (AMCL)
     nav          spqrel_nav_lite | ros | abstract                    (spqrel_nav_lite)
                  abstract: no simulator and no navigation; one node moves the robots in
@@ -30,7 +31,7 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
                  bound: the simulator waits for late navigation commands
     seed         random seed of agents and simulator noise           (0)
     results_dir  results root                                        (<workspace>/results)
-    rviz         open rviz with launch/patrol.rviz                   (false)
+    rviz         open rviz (the package's launch/patrol.rviz)        (false)
     gui_sim      open the simulator's window                         (false)
     record       save simulator snapshots and assemble a video       (false)
     record_period  sim seconds between snapshots                     (1.0)
@@ -77,7 +78,7 @@ NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lit
 
 
 def default_results_dir():
-    return os.path.join(paths.data_root(), "results")
+    return os.path.join(paths.results_root(), "results")
 
 
 @dataclass

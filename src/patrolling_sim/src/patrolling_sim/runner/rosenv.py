@@ -14,8 +14,9 @@ from patrolling_sim.common.errors import PatrolInputError
 
 @functools.lru_cache(maxsize=1)
 def workspace_env():
-    """Environment of ``source <workspace>/devel/setup.bash`` with /usr/bin first on PATH."""
-    setup = os.path.join(paths.data_root(), "devel", "setup.bash")
+    """Environment of ``source`` the workspace's setup.bash
+    (:func:`patrolling_sim.common.paths.workspace_setup`) with /usr/bin first on PATH."""
+    setup = paths.workspace_setup()
     if not os.path.isfile(setup):
         raise PatrolInputError(f"{setup} not found: build the workspace first (make setup)")
     return sourced_env(setup)

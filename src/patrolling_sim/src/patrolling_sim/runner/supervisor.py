@@ -21,8 +21,8 @@ Sequence of :meth:`Experiment.run`:
    when the wall-clock limit is exceeded (``ABORTED``): it sends SIGINT to roslaunch, which
    stops the nodes in order (the monitor writes its files on SIGINT);
 6. stops any survivor of its own process tree (never anything else), records the status in
-   info.csv's termination field and in ``<prefix>_run.yaml`` (:mod:`patrolling_sim.monitor.run_status`)
-   and returns an :class:`Outcome`.
+   info.csv's termination field and in ``<prefix>_run.yaml``
+   (:mod:`patrolling_sim.monitor.run_status`) and returns an :class:`Outcome`.
 
 Exit codes (:func:`patrolling_sim.monitor.run_status.exit_code_for`): 0 normal end (TIMEOUT,
 CYCLES, STOPPED), 1 FAIL or ABORTED, 3 CRASHED, 130 SIGINT, 143 SIGTERM.
@@ -36,14 +36,13 @@ from dataclasses import dataclass
 
 from patrolling_sim.monitor import run_status as rs
 from patrolling_sim.monitor.results import claim_prefix as _claim, default_prefix
-from patrolling_sim.monitor.run_status import NORMAL_ENDS  # noqa: F401 - re-exported (GUI, tests)
 from patrolling_sim.runner.launchgen import generate_launch, status_topic
-from patrolling_sim.runner.outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,  # noqa: F401
-                      missing_files, read_info, signal_name, summary, timing)
+from patrolling_sim.runner.outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,
+                                           missing_files, read_info, signal_name, summary, timing)
 from patrolling_sim.runner.proctree import ProcessTree
-from patrolling_sim.runner.roslaunch_log import RoslaunchLog, describe_node, is_monitor  # noqa: F401 - re-exported
+from patrolling_sim.runner.roslaunch_log import RoslaunchLog, is_monitor
 from patrolling_sim.runner.rosenv import experiment_env, free_port
-from patrolling_sim.runner.watch import RosWatcher, master_up, progress_line, read_progress  # noqa: F401
+from patrolling_sim.runner.watch import RosWatcher, master_up, progress_line
 from patrolling_sim.report.rviz_config import experiment_config_text
 from patrolling_sim.startpos.optimised import write_start_poses
 import ctypes
@@ -92,6 +91,7 @@ class _Run:
     def ended(self):
         """The monitor announced the run's END."""
         return self.watcher is not None and self.watcher.end
+
 
 class Experiment:
     """One experiment run. ``out`` receives the progress/status lines."""

@@ -94,7 +94,7 @@ def parse_attrition(spec: Optional[str], team_size: int, duration: float = math.
     for a in out:                       # a robot cannot fail again while it is down
         for b in out:
             if b is not a and b.robot == a.robot and a.t <= b.t and (a.back is None or
-                                                                    b.t < a.back):
+                                                                     b.t < a.back):
                 raise PatrolInputError(f"{what}: robot {a.robot} fails at {b.t:g} s while "
                                        f"already failed since {a.t:g} s")
     if len({f.robot for f in out if f.repair is None}) >= team_size:

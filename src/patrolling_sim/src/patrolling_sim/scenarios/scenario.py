@@ -25,7 +25,6 @@ from patrolling_sim.scenarios.attrition import Failure, describe, parse_attritio
 from patrolling_sim.scenarios.comm import CommModel, parse_comm
 from patrolling_sim.common.errors import PatrolInputError
 import yaml
-from patrolling_sim.common import paths
 from patrolling_sim.model import map_bundle
 from patrolling_sim.monitor.metrics import failure_impact
 from patrolling_sim.monitor.metrics import graph_idleness_series

@@ -1,6 +1,9 @@
 """Where the robots start.
 
-- :mod:`~patrolling_sim.startpos.initial_poses` -- the original's ``initial_poses.txt`` table and computed spreads
-- :mod:`~patrolling_sim.startpos.optimised`     -- ``--initpos optimised``: start vertices chosen for an algorithm
-- :mod:`~patrolling_sim.startpos.resolve`       -- an ``initpos`` setting resolved to start positions
+- :mod:`~patrolling_sim.startpos.initial_poses` -- the original's ``initial_poses.txt`` table
+  and computed spreads
+- :mod:`~patrolling_sim.startpos.optimised`     -- ``--initpos optimised``: start vertices
+  chosen for an algorithm
+- :mod:`~patrolling_sim.startpos.resolve`       -- an ``initpos`` setting resolved to start
+  positions
 """
