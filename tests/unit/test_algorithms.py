@@ -6,10 +6,11 @@ import pytest
 
 from patrolling_sim.common import paths
 from patrolling_sim.algorithms import REGISTRY, StrategyContext, create, names
-from patrolling_sim.algorithms.base import Driver
 from patrolling_sim.algorithms.cgg import rotate_to
 from patrolling_sim.algorithms.gbs import gbs_params, gbs_probability
 from patrolling_sim.algorithms.msp import msp_route
+from patrolling_sim.algorithms.testing import (RecordingDriver, deliver, load_graph,
+                                               make_strategy, walk)
 from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.planning.routes import balanced_partition, closed_route, route_cost
 
@@ -17,67 +18,14 @@ from patrolling_sim.planning.routes import balanced_partition, closed_route, rou
 ORIGINAL = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
 #: every registered algorithm, the originals and this project's improvements
 ALL = names()
-_G = {}
 
 
 def graph(name):
-    if name not in _G:
-        _G[name] = PatrolGraph.load(paths.map_files(name)[1])
-    return _G[name]
-
-
-class FakeDriver(Driver):
-    #: decisions are taken at once (DTAP does not wait for its auction)
-    accepts_pending_decision = False
-
-    def __init__(self):
-        self.t = 0.0
-        self.sent = []
-        self.timers = []
-        self.redirects = []
-
-    def now(self):
-        return self.t
-
-    def send(self, data):
-        assert all(-32768 <= x <= 32767 for x in data), data
-        self.sent.append(list(data))
-
-    def call_later(self, delay, fn):
-        self.timers.append((self.t + delay, fn))
-
-    def redirect(self, vertex):
-        self.redirects.append(vertex)
+    return load_graph(name)
 
 
 def make(alg, mapname="grid", rid=0, n=1, seed=0, params=None):
-    g = graph(mapname)
-    d = FakeDriver()
-    s = create(alg, StrategyContext(g, rid, n, mapname, random.Random(seed), d, params or {}))
-    return s, d
-
-
-def walk(s, d, start, steps, speed=1.0):
-    """Drive one strategy alone: travel time = path metres / speed. Returns visited goals."""
-    g = s.graph
-    s.start(start, d.t)
-    goals = []
-    v = s.next_vertex(d.t)
-    s.send_results(d.t)
-    cur = start
-    for _ in range(steps):
-        assert 0 <= v < g.n
-        d.t += g.dist[cur, v] * g.resolution / speed
-        for t, fn in sorted(d.timers, key=lambda x: x[0]):
-            if t <= d.t:
-                fn()
-        d.timers = [x for x in d.timers if x[0] > d.t]
-        s.on_arrival(v, d.t)
-        goals.append(v)
-        cur = v
-        v = s.next_vertex(d.t)
-        s.send_results(d.t)
-    return goals
+    return make_strategy(alg, mapname, rid, n, seed, params)
 
 
 def test_registry_has_the_eleven():
@@ -275,7 +223,7 @@ def test_dtap_auction_between_two_robots():
     g = graph("grid")
     bus = []
 
-    class BusDriver(FakeDriver):
+    class BusDriver(RecordingDriver):
         def __init__(self, rid):
             super().__init__()
             self.rid = rid
@@ -414,7 +362,21 @@ def test_route_followers_build_their_route_before_go(alg, monkeypatch):
 @pytest.mark.parametrize("alg", ["DTAG", "DTAP"])
 def test_dta_strategies_compute_their_path_table_before_go(alg):
     g = PatrolGraph.load(paths.map_files("cumberland")[1])     # a graph of its own
-    s = create(alg, StrategyContext(g, 0, 2, "cumberland", random.Random(0), FakeDriver(), {}))
+    s = create(alg, StrategyContext(g, 0, 2, "cumberland", random.Random(0), RecordingDriver(), {}))
     assert g._dist is None
     s.prepare(3)
     assert g._dist is not None
+
+
+def test_public_driver_delivers_to_teammates_and_checks_payloads():
+    """patrolling_sim.algorithms.testing: deliver() hands each message to every strategy but
+    its sender; RecordingDriver refuses a payload outside int16."""
+    a, da = make_strategy("GBS", "grid", robot_id=0, team_size=2, seed=1)
+    b, _ = make_strategy("GBS", "grid", robot_id=1, team_size=2, seed=1)
+    walk(a, da, 0, 3)
+    assert da.sent and all(m[0] == 0 for m in da.sent)
+    before = list(b.last_visit)
+    assert deliver(da.sent, [a, b], da.t) == len(da.sent)
+    assert b.last_visit != before                    # b learnt a's visits; a got nothing
+    with pytest.raises(ValueError, match="int16"):
+        RecordingDriver().send([0, 31, 40000])

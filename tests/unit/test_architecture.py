@@ -4,6 +4,7 @@ private name used across modules, no import inside a function but of a deferred 
 dependency, no module over 400 lines and no function over 80 in the packages' sources."""
 import ast
 import os
+import re
 import subprocess
 
 import networkx as nx
@@ -163,3 +164,23 @@ def test_the_checks_see_the_whole_tree():
     assert {"patrolling_sim.model.graph", "patrolling_sim.campaign.engine",
             "spqrel_nav_lite.planner"} <= set(MODULES)
     assert len(MODULES) > 80
+
+
+def test_comments_state_contracts_not_history():
+    """No dates, issue numbers or CI run ids in the code, its comments and docstrings (the
+    reasons and measurements behind a choice go in the commit message or bench/notes/)."""
+    history = re.compile(r"\b20\d\d-\d\d-\d\d\b|\b[Ii]ssue \d+\b|\bci\d+\b")
+    folders = [os.path.join(ROOT, d) for d in ("src", "scripts", "bench", "tests")]
+    found = []
+    for folder in folders:
+        for d, dirs, files in os.walk(folder):
+            dirs[:] = [x for x in dirs if x not in ("notes", "data", "__pycache__")]
+            for f in files:
+                p = os.path.join(d, f)
+                if not (f.endswith((".py", ".cpp", ".h", ".launch", ".test"))
+                        or os.path.basename(d) == "nodes"):
+                    continue
+                for n, line in enumerate(open(p, encoding="utf-8"), 1):
+                    if history.search(line):
+                        found.append(f"{os.path.relpath(p, ROOT)}:{n}: {line.strip()[:90]}")
+    assert not found, "\n".join(found)

@@ -94,6 +94,8 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign,
               "cpu_s": round(float(result.get("cpu_s") or 0.0), 3),
               "code": campaign.code, "provenance": result.get("provenance"),
               "metrics": metrics}
+    if result.get("start_vertices") is not None:
+        record["start_vertices"] = [int(v) for v in result["start_vertices"]]
     if result.get("error"):
         record["error"] = result["error"]
     if result.get("warnings"):
@@ -112,9 +114,14 @@ def extra_row_columns(spec: RunSpec, record: Optional[dict]) -> dict:
     return {}
 
 
+#: runs.csv's columns that come after all others, in this order: the start vertex of each
+#: robot (space-separated, robot 0 first; empty when the record has none)
+LAST_COLUMNS = ("start_vertices",)
+
+
 def table_rows(campaign: Campaign, state: Dict[str, dict]) -> List[dict]:
     """The rows of ``runs.csv``: one per run of the campaign, in its order (config columns,
-    status, metrics)."""
+    status, metrics, then :data:`LAST_COLUMNS` for the runs that have a record)."""
     rows = []
     for spec in campaign.runs:
         rec = state.get(spec.key)
@@ -129,6 +136,9 @@ def table_rows(campaign: Campaign, state: Dict[str, dict]) -> List[dict]:
             row.update(rec.get("metrics") or {})
             row["warnings"] = len(rec.get("warnings") or ())
         row.update(extra_row_columns(spec, rec))
+        if rec:
+            starts = rec.get("start_vertices")
+            row["start_vertices"] = None if starts is None else " ".join(map(str, starts))
         rows.append(row)
     return rows
 
@@ -141,9 +151,12 @@ def write_table(out: str, campaign: Campaign, state: Dict[str, dict]) -> str:
     ends), so that ``pandas.read_csv`` reads it as before, but without importing pandas: its
     0.2 s of import was on the campaign's critical path, or took CPU from the workers
     (bench/notes/campaign.md). One difference in the text: an integer column with
-    empty cells (``rc`` of runs not run) reads ``0``, not pandas' ``0.0``."""
+    empty cells (``rc`` of runs not run) reads ``0``, not pandas' ``0.0``. The columns of
+    :data:`LAST_COLUMNS` come last wherever they first appear."""
     rows = table_rows(campaign, state)
     columns = list(dict.fromkeys(k for row in rows for k in row))
+    columns = ([c for c in columns if c not in LAST_COLUMNS]
+               + [c for c in LAST_COLUMNS if c in columns])
     path = os.path.join(out, "runs.csv")
     tmp = path + ".part"
     with open(tmp, "w", newline="") as f:

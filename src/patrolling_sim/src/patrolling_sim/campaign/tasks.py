@@ -34,6 +34,10 @@ from patrolling_sim.monitor.run_status import longest_silence
 from patrolling_sim.monitor.run_status import silences_of
 from patrolling_sim.scenarios.scenario import scenario_columns
 from patrolling_sim.scenarios.scenario import scenario_metrics
+from patrolling_sim.startpos.explicit import RANDOM
+from patrolling_sim.startpos.explicit import VERTICES
+from patrolling_sim.startpos.explicit import parse_initpos
+from patrolling_sim.startpos.explicit import start_file_path
 from patrolling_sim.startpos.initial_poses import OPTIMISED
 
 
@@ -84,7 +88,8 @@ class SchedulerGoneFirst(logging.Filter):
 
 class WorldCache:
     """Patrol graphs (per map) and start vertices (per map, team size and initpos; and
-    algorithm for "optimised"), built once per worker process: a campaign runs the same few
+    algorithm for "optimised", seed for "random", the start file's stamp for a start file),
+    built once per worker process: a campaign runs the same few
     worlds hundreds of times, and loading the map image, its clearance and the start
     positions was a tenth of a run's CPU time. Keyed on the files read (path, size, mtime),
     so an edited file is loaded again. A graph is shared read-only by the runs of its map
@@ -107,6 +112,21 @@ class WorldCache:
         table[key] = value
         return value
 
+    def _start_input(self, cfg, yaml_path):
+        """What else the start of ``cfg`` depends on: the seed of a random start, the stamp
+        of a start file (None if it is missing: resolving the start then fails), else
+        None."""
+        form = parse_initpos(cfg.initpos)
+        if form is None or form.kind == VERTICES:
+            return None
+        if form.kind == RANDOM:
+            return cfg.seed
+        path = start_file_path(form.path, os.path.dirname(os.path.abspath(yaml_path)))
+        try:
+            return self._stamp(path)
+        except OSError:
+            return None
+
     def get(self, cfg):
         """(PatrolGraph, start vertices) of the GraphSimConfig ``cfg``."""
         cfg.validate()                           # as the run's GraphSimulator would, first
@@ -116,7 +136,8 @@ class WorldCache:
         if g is None:
             g = self._put(self._graphs, gkey, PatrolGraph.load(graph_path))
         skey = (self._stamp(yaml_path), gkey, self._stamp(paths.initial_poses_file()),
-                cfg.robots, cfg.initpos, cfg.alg if cfg.initpos == OPTIMISED else None)
+                cfg.robots, cfg.initpos, cfg.alg if cfg.initpos == OPTIMISED else None,
+                self._start_input(cfg, yaml_path))
         starts = self._starts.get(skey)
         if starts is None:
             starts = self._put(self._starts, skey, tuple(start_vertices_of(cfg, g)))
@@ -244,7 +265,8 @@ def run_graph_task(config: dict, worlds: "WorldCache" = None) -> dict:
     t1 = datetime.datetime.now(datetime.timezone.utc)
     out = {"prefix": prefix, "files": files, "status": sim.termination, "rc": 0,
            "metrics": metrics, "cpu_s": time.thread_time() - cpu,
-           "wall": time.monotonic() - wall, "provenance": _provenance(t0, t1)}
+           "wall": time.monotonic() - wall, "provenance": _provenance(t0, t1),
+           "start_vertices": list(sim.start_vertices)}
     if warnings.lines:
         out["warnings"] = warnings.lines
     return out
@@ -305,7 +327,22 @@ def run_ros_task(config: dict, runner: str) -> dict:
     return {"prefix": prefix, "files": files, "status": status, "rc": proc.returncode,
             "metrics": metrics, "cpu_s": _children_cpu() - cpu, "wall": time.monotonic() - wall,
             "provenance": _provenance(t0, t1),
-            "log_tail": (proc.stdout + proc.stderr)[-2000:]}
+            "log_tail": (proc.stdout + proc.stderr)[-2000:],
+            "start_vertices": start_vertices_from_files(files, prefix)}
+
+
+def start_vertices_from_files(files, prefix):
+    """The start vertex of each robot, read from the run's ``<prefix>_start_poses.txt``
+    (``robot x y vertex`` lines) in ``files`` (relative path -> text); None without that
+    file or with a line that does not read."""
+    text = files.get(f"{prefix}_start_poses.txt") if prefix else None
+    if text is None:
+        return None
+    try:
+        return [int(line.split()[3]) for line in text.splitlines()
+                if line.strip() and not line.startswith("#")]
+    except (IndexError, ValueError):
+        return None
 
 
 def _children_cpu():

@@ -215,14 +215,36 @@ def check_ros_navigation(loc, env=None):
                                f"them); use --nav spqrel_nav_lite")
 
 
-def check_start_positions(map_arg, robots, initpos, what="argument --robots", alg=None):
-    """The team's start positions (from params/initial_poses.txt or computed); a one-line
-    error when they cannot be placed."""
-    occ, G = map_bundle.load_map_bundle(map_arg)
+def check_start_positions(map_arg, robots, initpos, what="argument --robots", alg=None,
+                          seed=0, bundle=None):
+    """The team's start positions, checked: the shared check of the runner and graph mode.
+
+    Args:
+        map_arg: a shipped map's name or a path to its yaml/.graph.
+        robots: team size.
+        initpos: the ``initpos`` setting, any form of
+            :func:`patrolling_sim.startpos.resolve.start_positions` (a start file is
+            resolved against the map's folder).
+        what: unused (kept for callers naming the argument).
+        alg: the algorithm (``optimised``).
+        seed: the run's seed (``random``).
+        bundle: the map's (OccupancyMap, graph) if already loaded
+            (:func:`patrolling_sim.model.map_bundle.load_map_bundle`).
+
+    Returns:
+        (positions, PatrolGraph): ``robots`` (x, y) in metres and the map's patrol graph.
+
+    Raises:
+        PatrolInputError: one line when the start positions cannot be placed or the
+        setting is malformed.
+    """
+    occ, G = bundle or map_bundle.load_map_bundle(map_arg)
     table_path = paths.initial_poses_file()
     pg = PatrolGraph(G)
+    map_dir = os.path.dirname(os.path.abspath(paths.map_files(map_arg)[0]))
     pos, _ = start_positions(paths.map_name(map_arg), robots, pg, occ, initpos,
-                             load_initial_poses(table_path), table_path, alg=alg)
+                             load_initial_poses(table_path), table_path, alg=alg, seed=seed,
+                             map_dir=map_dir)
     return pos, pg
 
 

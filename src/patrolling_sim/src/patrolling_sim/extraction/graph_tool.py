@@ -4,7 +4,7 @@ Sub-commands::
 
     check [MAP ...]              parse maps (all shipped maps by default); print V/E, warnings
     info MAP                     one line per vertex: id, pixels, metres, neighbours
-    startposes MAP N [--initpos VARIANT] [--alg ALG]   start positions for N robots
+    startposes MAP N [--initpos FORM] [--seed S] [--alg ALG]   start positions for N robots
     draw MAP --out PNG           picture of the graph over the map
     write MAP --out GRAPH        write the graph back in .graph format
     msp MAP N                    check the shipped MSP route files for N robots
@@ -68,12 +68,17 @@ def cmd_info(args):
 
 
 def cmd_startposes(args):
+    """Print the start position and vertex of each of ``args.n`` robots on ``args.map`` for
+    ``args.initpos`` (any form, ``random`` drawn from ``args.seed``). Raises
+    PatrolInputError when they cannot be placed."""
     if args.n < 1:
         raise PatrolInputError(f"argument N: team size must be >= 1, got {args.n}")
     occ, G, pg = _load(args.map)
     table = load_initial_poses(paths.initial_poses_file())
+    map_dir = os.path.dirname(os.path.abspath(paths.map_files(args.map)[0]))
     pos, src = start_positions(paths.map_name(args.map), args.n, pg, occ, args.initpos, table,
-                               paths.initial_poses_file(), alg=args.alg)
+                               paths.initial_poses_file(), alg=args.alg, seed=args.seed,
+                               map_dir=map_dir)
     print(f"# {len(pos)} start positions ({src})")
     for k, (x, y) in enumerate(pos):
         print(f"robot_{k}\t{x:.3f}\t{y:.3f}\tvertex {pg.nearest_vertex(x, y)}")
@@ -186,7 +191,10 @@ def main(argv):
     p.add_argument("map")
     p.add_argument("n", type=int)
     p.add_argument("--initpos", default="default",
-                   help="'default', a table variant, or 'optimised' (needs --alg)")
+                   help="'default', a table variant, 'optimised' (needs --alg), "
+                        "'vertices:V0,V1,...', 'file:PATH' (or a bare path; relative to the "
+                        "map's folder) or 'random' (drawn from --seed)")
+    p.add_argument("--seed", type=int, default=0, help="the run's seed (--initpos random)")
     p.add_argument("--alg", help="algorithm the optimised start is chosen for")
     p.set_defaults(fn=cmd_startposes)
     p = sub.add_parser("draw")

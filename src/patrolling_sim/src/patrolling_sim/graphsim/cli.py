@@ -36,7 +36,14 @@ def build_parser():
     ap.add_argument("--gwait", type=float, default=0.0, help="goal wait (s)")
     ap.add_argument("--comm-delay", type=float, default=0.0, help="message delay (s)")
     ap.add_argument("--loss", type=float, default=0.0, help="message loss rate [0, 1)")
-    ap.add_argument("--initpos", default="default", help="initial poses variant")
+    ap.add_argument("--initpos", default="default",
+                    help="start positions: 'default' (params/initial_poses.txt, else "
+                         "computed), a variant letter of that table, 'optimised' (for --alg), "
+                         "'vertices:V0,V1,...' (one vertex per robot), 'file:PATH' or a bare "
+                         "path ('robot x y' / 'robot vertex' lines, or an [InitialPoses] "
+                         "file; relative to the map's folder), or 'random' (distinct "
+                         "vertices drawn from --seed); a pose starts a robot on its nearest "
+                         "vertex")
     ap.add_argument("--goal-fail", type=float, default=0.0,
                     help="probability that a navigation goal fails on the way [0, 1)")
     ap.add_argument("--interference", choices=("on", "off"), default="on",
@@ -68,7 +75,7 @@ def check_first_run(a):
                            results_dir=a.results_dir, comm=a.comm,
                            attrition=a.attrition).validate()
     _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos,
-                                                 alg=first.alg)
+                                                 alg=first.alg, seed=first.seed)
     warning = validation.team_size_warning(first.robots, pgraph.n, paths.map_name(a.map))
     if warning:
         print(warning, file=sys.stderr)

@@ -7,6 +7,7 @@ from patrolling_sim.experiment import validation
 from patrolling_sim.algorithms import REGISTRY
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.scenarios.scenario import check_scenario
+from patrolling_sim.startpos.explicit import check_initpos
 
 TIMERESULTS_PERIOD = 900.0
 #: shortest trip (s): a goal on the robot's own vertex still takes one navigation cycle, so
@@ -34,7 +35,11 @@ class GraphSimConfig:
     gwait: float = 0.0
     comm_delay: float = 0.0
     loss: float = 0.0
-    initpos: str = "default"
+    initpos: str = "default"        # start positions, any form of
+    #                                 patrolling_sim.startpos.resolve.start_positions
+    #                                 ("default", a variant, "optimised", "vertices:...",
+    #                                 "file:PATH", "random" drawn from seed); a robot starts
+    #                                 on the vertex nearest its start position
     results_dir: str = "results"
     params: dict = field(default_factory=dict)
     goal_fail: float = 0.0          # probability that a navigation goal fails on the way
@@ -69,6 +74,7 @@ class GraphSimConfig:
                                    f", got '{self.travel}'")
         # the same one-line errors as the experiment runner (patrolling_sim.experiment.validation)
         validation.check_map_files(self.map)
+        check_initpos(self.initpos, self.robots)      # syntax and count, without the map
         check_scenario(self.comm, self.attrition, self.robots,
                        self.duration if self.duration > 0 else math.inf, self.seed)
         return self

@@ -23,6 +23,7 @@ The world this module adds (see ``docs/protocol.md``, "Graph mode"):
 
 Deterministic: the same inputs and seed give the same files (apart from wall-clock fields).
 """
+import dataclasses
 import heapq
 import itertools
 import math
@@ -31,7 +32,10 @@ import random
 import time
 from typing import Callable, Optional, Sequence
 
+import yaml
+
 from patrolling_sim.common import paths
+from patrolling_sim.common.textfile import YamlDumper
 from patrolling_sim.monitor import run_status
 from patrolling_sim.agent.core import FIRST_ALGORITHM_TYPE, GO, MONITOR_ID
 from patrolling_sim.agent.factory import agent_seed, build_agent
@@ -50,6 +54,7 @@ from patrolling_sim.scenarios.scenario import check_scenario
 from patrolling_sim.scenarios.scenario import is_perfect
 from patrolling_sim.scenarios.scenario import write_scenario
 from patrolling_sim.startpos.initial_poses import load_initial_poses
+from patrolling_sim.startpos.explicit import initpos_label
 from patrolling_sim.startpos.optimised import write_start_poses
 from patrolling_sim.startpos.resolve import start_positions
 from spqrel_nav_lite.mapio import load_map
@@ -57,13 +62,32 @@ from spqrel_nav_lite.mapio import load_map
 
 def start_vertices_of(cfg: GraphSimConfig, pgraph: PatrolGraph):
     """The start vertex of each robot of ``cfg`` on ``pgraph``: the vertices nearest to the
-    start positions of the map's table, computed or optimised (docs/protocol.md)."""
+    start positions of ``cfg.initpos`` (the map's table, computed, optimised, stated
+    vertices or poses, or random from ``cfg.seed``; docs/protocol.md). Raises
+    PatrolInputError when they cannot be placed."""
     yaml_path, _ = paths.map_files(cfg.map)
     occ = load_map(yaml_path)
     table_path = paths.initial_poses_file()
     pos, _ = start_positions(paths.map_name(cfg.map), cfg.robots, pgraph, occ, cfg.initpos,
-                             load_initial_poses(table_path), table_path, alg=cfg.alg)
+                             load_initial_poses(table_path), table_path, alg=cfg.alg,
+                             seed=cfg.seed, map_dir=os.path.dirname(os.path.abspath(yaml_path)))
     return [pgraph.nearest_vertex(x, y) for x, y in pos]
+
+
+def config_yaml(cfg: GraphSimConfig, start_vertices: Sequence[int]) -> str:
+    """The text of a graph-mode run's ``<prefix>_config.yaml``: the fields of ``cfg`` and,
+    after ``initpos``, the resolved ``start_vertices``. ``params`` that YAML cannot write
+    (Python objects given from Python) are written as their ``repr``."""
+    d = {}
+    for key, value in dataclasses.asdict(cfg).items():
+        d[key] = value
+        if key == "initpos":
+            d["start_vertices"] = [int(v) for v in start_vertices]
+    try:
+        return yaml.dump(d, Dumper=YamlDumper, sort_keys=False)
+    except yaml.YAMLError:
+        d["params"] = repr(cfg.params)
+        return yaml.dump(d, Dumper=YamlDumper, sort_keys=False)
 
 
 class GraphSimulator(FeedbackTicks):
@@ -265,7 +289,9 @@ class GraphSimulator(FeedbackTicks):
                 flush_every=WRITE_FLUSH_EVERY)
             write_start_poses(self.prefix + "_start_poses.txt",
                               [tuple(self.g.pos[v]) for v in self.start_vertices], self.g,
-                              f"--initpos {cfg.initpos}")
+                              initpos_label(cfg.initpos, cfg.seed))
+            with open(self.prefix + "_config.yaml", "w", encoding="utf-8") as f:
+                f.write(config_yaml(cfg, self.start_vertices))
         try:
             for r in self.robots:
                 self._make_core(r)

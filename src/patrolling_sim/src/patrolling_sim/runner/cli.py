@@ -46,7 +46,11 @@ def build_parser():
     ap.add_argument("--config", help="YAML experiment configuration (flags override it)")
     ap.add_argument("--map")
     ap.add_argument("--robots", type=int)
-    ap.add_argument("--initpos", help="'default' or a variant letter of initial_poses.txt")
+    ap.add_argument("--initpos", help="start positions: 'default' (params/initial_poses.txt, "
+                    "else computed), a variant letter of that table, 'optimised' (for --alg), "
+                    "'vertices:V0,V1,...' (one vertex per robot), 'file:PATH' or a bare path "
+                    "('robot x y' / 'robot vertex' lines, or an [InitialPoses] file; relative "
+                    "to the map's folder), or 'random' (distinct vertices drawn from --seed)")
     ap.add_argument("--alg", help="algorithm short name")
     ap.add_argument("--loc", help="AMCL | fake_localization")
     ap.add_argument("--nav", help="spqrel_nav_lite | ros | abstract (straight-line world)")

@@ -8,9 +8,13 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     robots       team size N >= 1                                    required
     alg          algorithm short name (RAND, CR, HCR, HPCC, CGG, MSP, GBS, SEBS, CBLS,
                  DTAG, DTAP, or any registered strategy)             required
-    initpos      "default", a lettered variant of params/initial_poses.txt ("a", "b", ...) or
-                 "optimised" (start vertices chosen for the algorithm,
-                 patrolling_sim.startpos.optimised)
+    initpos      where the robots start (patrolling_sim.startpos):      (default)
+                 "default" (the map's entry of params/initial_poses.txt, else computed), a
+                 lettered variant of that table ("a", "b", ...), "optimised" (start
+                 vertices chosen for the algorithm), "vertices:21,48,3" (one vertex per
+                 robot), "file:PATH" or a bare PATH with a "/" or an extension (a start
+                 file: [InitialPoses] INI, or lines "robot x y" / "robot vertex"; relative
+                 to the map's folder), or "random" (distinct vertices drawn from seed)
     loc          AMCL | fake_localization                            (AMCL)
     nav          spqrel_nav_lite | ros | abstract                    (spqrel_nav_lite)
                  abstract: no simulator and no navigation; one node moves the robots in
@@ -29,7 +33,7 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     cycles       stop after k complete patrol cycles; 0 = no limit   (0)
     speedup      simulator pace (> 0): 1 = real time, 4 = four times faster   (1); an upper
                  bound: the simulator waits for late navigation commands
-    seed         random seed of agents and simulator noise           (0)
+    seed         random seed of agents, simulator noise and "random" starts   (0)
     results_dir  results root                                        (<workspace>/results)
     rviz         open rviz (the package's launch/patrol.rviz)        (false)
     gui_sim      open the simulator's window                         (false)
@@ -49,6 +53,8 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
                  navigation pooled in K nav_host processes (docs/navigation.md)
 
 ``validate()`` raises :class:`PatrolInputError` with one line naming the key or argument.
+A run's ``_config.yaml`` (:meth:`ExperimentConfig.to_yaml`) also records the resolved
+``start_vertices``; reading such a file ignores them (``initpos`` and ``seed`` decide).
 """
 import dataclasses
 import logging
@@ -64,17 +70,18 @@ from patrolling_sim.experiment import validation
 from patrolling_sim.experiment.validation import process_layout
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.algorithms import REGISTRY
-from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.runner.rosenv import workspace_env
 from patrolling_sim.scenarios.scenario import check_scenario
-from patrolling_sim.startpos.initial_poses import load_initial_poses
-from patrolling_sim.startpos.resolve import start_positions
+from patrolling_sim.startpos.explicit import check_initpos
 
 log = logging.getLogger(__name__)
 
 LOC_MODES = ("AMCL", "fake_localization")
 NAV_MODES = ("spqrel_nav_lite", "ros", "abstract")
 NAV_ALIASES = {"spqrel_navigation": "spqrel_nav_lite", "spqrel": "spqrel_nav_lite"}
+#: keys of a ``_config.yaml`` that record what the run resolved, not settings: ignored on
+#: reading
+RECORDED_KEYS = ("start_vertices",)
 
 
 def default_results_dir():
@@ -111,8 +118,15 @@ class ExperimentConfig:
     def to_dict(self):
         return dataclasses.asdict(self)
 
-    def to_yaml(self):
-        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+    def to_yaml(self, start_vertices=None):
+        """The configuration as YAML; with ``start_vertices`` (the resolved start vertex of
+        each robot) a ``start_vertices`` list follows ``initpos``."""
+        d = {}
+        for key, value in self.to_dict().items():
+            d[key] = value
+            if key == "initpos" and start_vertices is not None:
+                d["start_vertices"] = [int(v) for v in start_vertices]
+        return yaml.safe_dump(d, sort_keys=False)
 
     def save(self, path):
         tmp = f"{path}.tmp{os.getpid()}"
@@ -130,6 +144,8 @@ class ExperimentConfig:
             key = str(raw_key).replace("-", "_")
             if key == "comm_delay" or key == "commdelay":
                 key = "comm_delay"
+            if key in RECORDED_KEYS:
+                continue
             if key not in types:
                 raise PatrolInputError(f"{source}: unknown key '{raw_key}' (known: "
                                        f"{', '.join(types)})")
@@ -189,6 +205,7 @@ class ExperimentConfig:
             raise PatrolInputError("argument --record-period: must be > 0 when recording")
         if not self.initpos:
             self.initpos = "default"
+        check_initpos(self.initpos, self.robots)    # syntax and count, without the map
         bundle = None
         if check_start_positions:
             # the map and its graph, read once: start poses, team size and memory estimate
@@ -228,16 +245,18 @@ class ExperimentConfig:
                               seed=self.seed, what_comm="argument --comm",
                               what_attr="argument --attrition")
 
+    def start_poses(self, bundle=None):
+        """(positions, PatrolGraph): [(x, y)] for the team (any ``initpos`` form,
+        :func:`patrolling_sim.experiment.validation.check_start_positions`) and the map's
+        graph; validates the team size. ``bundle``: the map's (OccupancyMap, graph) if
+        already loaded (:func:`patrolling_sim.model.map_bundle.load_map_bundle`). Raises
+        PatrolInputError (one line) when they cannot be placed."""
+        return validation.check_start_positions(self.map, self.robots, self.initpos,
+                                                alg=self.alg, seed=self.seed, bundle=bundle)
+
     def start_positions(self, bundle=None):
-        """[(x, y)] for the team (table entry or computed); validates the team size.
-        ``bundle``: the map's (OccupancyMap, graph) if already loaded
-        (:func:`patrolling_sim.common.map_bundle.load_map_bundle`)."""
-        occ, G = bundle or map_bundle.load_map_bundle(self.map)
-        table_path = paths.initial_poses_file()
-        pos, _ = start_positions(paths.map_name(self.map), self.robots, PatrolGraph(G), occ,
-                                 self.initpos, load_initial_poses(table_path), table_path,
-                                 alg=self.alg)
-        return pos
+        """[(x, y)] for the team: the positions of :meth:`start_poses`."""
+        return self.start_poses(bundle)[0]
 
     @property
     def map_name(self):

@@ -44,6 +44,7 @@ from patrolling_sim.runner.roslaunch_log import RoslaunchLog, is_monitor
 from patrolling_sim.runner.rosenv import experiment_env, free_port
 from patrolling_sim.runner.watch import RosWatcher, master_up, progress_line
 from patrolling_sim.report.rviz_config import experiment_config_text
+from patrolling_sim.startpos.explicit import initpos_label
 from patrolling_sim.startpos.optimised import write_start_poses
 import ctypes
 
@@ -62,13 +63,14 @@ def _terminate_with_parent(parent_pid):
     return setup
 
 
-def claim_prefix(cfg, stamp=None):
+def claim_prefix(cfg, stamp=None, start_vertices=None):
     """Create the run folder and claim a unique prefix
     ``<results>/<map>_<N>/<ALG>/<host>/<stamp>[_k]`` by creating ``<prefix>_config.yaml``
-    exclusively (safe against parallel runners) with the configuration in it."""
+    exclusively (safe against parallel runners) with the configuration in it, and the
+    resolved ``start_vertices`` (one per robot) when given."""
     return _claim(default_prefix(os.path.abspath(cfg.results_dir), cfg.result_name,
                                  cfg.robots, cfg.alg, stamp=stamp),
-                  "_config.yaml", cfg.to_yaml())
+                  "_config.yaml", cfg.to_yaml(start_vertices))
 
 
 @dataclass
@@ -127,10 +129,12 @@ class Experiment:
 
     def prepare(self):
         cfg = self.cfg
-        positions = cfg.start_positions()
-        self.prefix = claim_prefix(cfg)
-        write_start_poses(self.prefix + "_start_poses.txt", positions, cfg.map,
-                          f"--initpos {cfg.initpos}")
+        positions, pgraph = cfg.start_poses()
+        # a robot's start vertex is the vertex nearest its pose, as its agent finds it
+        self.prefix = claim_prefix(cfg, start_vertices=[pgraph.nearest_vertex(x, y)
+                                                        for x, y in positions])
+        write_start_poses(self.prefix + "_start_poses.txt", positions, pgraph,
+                          initpos_label(cfg.initpos, cfg.seed))
         self.log_dir = self.prefix + "_logs"
         os.makedirs(self.log_dir, exist_ok=True)
         snap = None
