@@ -356,7 +356,8 @@ def test_extended_metrics_from_the_visit_log_or_the_campaign_file(tmp_path):
     sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
     from patrolling_sim.monitor.metrics import compute_metrics, read_visits
     from patrolling_sim.model.map_bundle import vertex_count
-    from patrolling_sim.report.loading import find_runs, load_run
+    from patrolling_sim.report.loading import load_run
+    from patrolling_sim.report.result_sets import find_runs
     res = tmp_path / "res"
     p = subprocess.run([sys.executable, GRAPH_SIM, "--map", "grid", "--robots", "2", "--alg",
                         "CR", "--duration", "600", "--seed", "1", "--results-dir", str(res)],

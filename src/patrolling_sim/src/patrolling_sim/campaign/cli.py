@@ -7,11 +7,13 @@ import sys
 
 from patrolling_sim.campaign.cluster import env_for_workers
 from patrolling_sim.campaign.engine import run_campaign
+from patrolling_sim.campaign.folder import hold_folder
 from patrolling_sim.campaign.spec import RESULTS_DIR, load_campaign
 from patrolling_sim.campaign.store import load_state, needs_run, summary_table
 from patrolling_sim.common import paths
 from patrolling_sim.common.cli import CliParser
 from patrolling_sim.common.cli import run_main
+from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.report.build import build_report
 
 #: a campaign's report draws one idleness-over-time figure per run only up to this many
@@ -36,6 +38,9 @@ def build_parser():
     ap.add_argument("--dry-run", action="store_true",
                     help="validate and list the runs, run nothing")
     ap.add_argument("--no-report", action="store_true", help="skip the HTML report")
+    ap.add_argument("--force-new", action="store_true",
+                    help="start this campaign in an --out folder that holds another one (its "
+                    "table and report then use only this campaign's own runs)")
     return ap
 
 
@@ -60,19 +65,43 @@ def print_dry_run(camp, out, retry_failed):
         print(f"{r.key}  {'run ' if todo else 'done'}  {r.label()}")
 
 
+def own_result_sets(camp, out):
+    """The result files of ``camp``'s own runs in the folder ``out``, from their state
+    records: each run's info file, or its ``_run.yaml`` when it has none (the report lists
+    such runs). Never what else lies in the folder."""
+    state = load_state(out)
+    sets = []
+    for r in camp.runs:
+        prefix = (state.get(r.key) or {}).get("prefix")
+        if not prefix:
+            continue
+        base = os.path.join(out, prefix)
+        for suffix in ("_info.csv", "_run.yaml"):
+            if os.path.isfile(base + suffix):
+                sets.append(base + suffix)
+                break
+    return sets
+
+
 def write_report(camp, out):
-    """Write the HTML report of the campaign folder ``out`` into ``out/report`` and print
-    its path; per-run time plots only up to REPORT_RUN_PLOTS_MAX runs. Never raises on a
-    report error: the table is the product, so the error is printed as a warning."""
+    """Write the HTML report of ``camp``'s own runs in the folder ``out`` into
+    ``out/report`` (:func:`own_result_sets`) and print its path; per-run time plots only up
+    to REPORT_RUN_PLOTS_MAX runs. Never raises on a report error: the table is the product,
+    so the error is printed as a warning and an older report is removed."""
     per_run = len(camp.runs) <= REPORT_RUN_PLOTS_MAX
+    page = os.path.join(out, "report", "report.html")
     try:
-        build_report([os.path.join(out, RESULTS_DIR)], os.path.join(out, "report"),
-                     run_plots=per_run)
+        sets = own_result_sets(camp, out)
+        if not sets:
+            raise PatrolInputError("no run of this campaign has result files")
+        build_report(sets, os.path.join(out, "report"), run_plots=per_run)
         print(f"report: {os.path.join(out, 'report', 'report.html')}"
               + ("" if per_run else f" (no per-run time plots: {len(camp.runs)} runs "
                  f"> {REPORT_RUN_PLOTS_MAX}; scripts/report.py "
                  f"{os.path.join(out, RESULTS_DIR)} draws them)"))
     except Exception as e:             # the table is the product; say why no report
+        if os.path.isfile(page):       # never leave a report of other runs in place
+            os.remove(page)
         print(f"campaign.py: warning: no report ({type(e).__name__}: {e})")
 
 
@@ -94,13 +123,17 @@ def run_command(args):
     if a.dry_run:
         print_dry_run(camp, out, a.retry_failed)
         return 0
-    res = run_campaign(camp, out, scheduler=a.scheduler, workers=a.workers,
-                       retry_failed=a.retry_failed, limit=a.limit)
-    print(summary_table(out))
-    print(f"table: {res['table']}")
-    if not a.no_report and not res["interrupted"] and os.path.isdir(
-            os.path.join(out, RESULTS_DIR)):
-        write_report(camp, out)
+    with hold_folder(out, camp, a.force_new):
+        res = run_campaign(camp, out, scheduler=a.scheduler, workers=a.workers,
+                           retry_failed=a.retry_failed, limit=a.limit)
+        print(summary_table(out))
+        if res["redone"]:
+            print(f"redone: {res['redone']} finished run(s) whose files were missing or "
+                  "damaged")
+        print(f"table: {res['table']}")
+        if not a.no_report and not res["interrupted"] and os.path.isdir(
+                os.path.join(out, RESULTS_DIR)):
+            write_report(camp, out)
     if res["interrupted"]:
         return 130 if res["signal"] == signal.SIGINT else 143
     return 0

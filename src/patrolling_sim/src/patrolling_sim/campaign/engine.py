@@ -32,6 +32,7 @@ The cluster (its start, its size, its workers' forkserver) is in
 :mod:`~patrolling_sim.campaign.cli`.
 """
 import asyncio
+import contextlib
 import datetime
 import os
 import platform
@@ -48,8 +49,8 @@ from patrolling_sim.common import paths
 from patrolling_sim.campaign.cluster import (ClusterStart, close_quietly, env_for_workers,
                                              local_cluster_size)
 from patrolling_sim.campaign.spec import DONE_STATUSES, Campaign
-from patrolling_sim.campaign.store import (load_state, needs_run, store_result, write_table,
-                                           write_atomic)
+from patrolling_sim.campaign.store import (damaged, load_state, needs_run, store_result,
+                                           write_atomic, write_table)
 from patrolling_sim.campaign.tasks import IgnoreGroupSignals, chunks, run_graph_chunk, run_ros_task
 
 
@@ -132,6 +133,7 @@ class _CampaignRun:
         write_atomic(os.path.join(out, "campaign.yaml"), yaml.safe_dump(campaign.raw,
                                                                         sort_keys=False))
         self.state = load_state(out)
+        self.redone = self._damaged_runs()
         self.todo = [r for r in campaign.runs if needs_run(self.state.get(r.key), retry_failed)]
         self.skipped = len(campaign.runs) - len(self.todo)
         if limit is not None:
@@ -142,6 +144,27 @@ class _CampaignRun:
         self.t_submit = self.t_last = None     # runs submitted; last run stored (monotonic)
         self.cluster = self.client = self.starting = None
         self.prov = None
+
+    def _damaged_runs(self):
+        """Forget the records of finished runs whose files no longer match them
+        (:func:`patrolling_sim.campaign.store.damaged`), so they are run again; their
+        remaining files are removed. Returns how many; each is reported on the stream."""
+        count = 0
+        for r in self.campaign.runs:
+            rec = self.state.get(r.key)
+            if not rec or rec.get("status") not in DONE_STATUSES:
+                continue
+            why = damaged(self.out, rec)
+            if why is None:
+                continue
+            for rel in (rec.get("files") or {}):
+                with contextlib.suppress(OSError):
+                    os.remove(os.path.join(self.out, rel))
+            del self.state[r.key]
+            count += 1
+            self.stream.write(f"campaign {self.campaign.name}: {r.label()}: {why}: "
+                              "run again\n")
+        return count
 
     def on_signal(self, signum, _frame):
         """Handler of SIGINT and SIGTERM: records the signal. While results are being
@@ -298,7 +321,8 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
         on_record: called with each stored record (tests).
 
     Returns:
-        dict: ``ran`` and ``skipped`` (run counts), ``interrupted`` (bool), ``signal`` (the
+        dict: ``ran`` and ``skipped`` (run counts), ``redone`` (finished runs whose files
+        no longer matched their records, run again), ``interrupted`` (bool), ``signal`` (the
         signal number or None) and ``table`` (the path of ``runs.csv``).
 
     Ctrl-C (or SIGTERM) stops cleanly: runs in progress are cancelled, every finished run's
@@ -333,8 +357,8 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
         finally:
             for s, h in old.items():
                 signal.signal(s, h)
-    return {"ran": run.ran, "skipped": run.skipped, "interrupted": stopped,
-            "signal": run.sig if stopped else None, "table": table}
+    return {"ran": run.ran, "skipped": run.skipped, "redone": run.redone,
+            "interrupted": stopped, "signal": run.sig if stopped else None, "table": table}
 
 
 #: provenance: the packages whose versions a campaign records (module name: distribution)

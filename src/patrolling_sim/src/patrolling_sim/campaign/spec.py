@@ -243,6 +243,12 @@ def load_campaign(path: str, code: Optional[Dict[str, object]] = None) -> Campai
         raise PatrolInputError(f"{path}: the grid repeats a run (same configuration twice)")
     name = raw.get("name") or os.path.splitext(os.path.basename(path))[0]
     n = len(runs)
+    warnings = [msg + (f" (in {k} of the {n} runs)" if n > 1 else "")
+                for msg, k in counts.items()]
+    if not grid:
+        unset = sorted(set(fields) - set(fixed) - set(RESERVED.get(mode, ())))
+        warnings.insert(0, f"{path}: grid and seeds vary nothing: the campaign is one run of "
+                        f"the fixed settings, every other key at its default "
+                        f"({', '.join(unset[:6])}{', ...' if len(unset) > 6 else ''})")
     return Campaign(str(name), mode, os.path.abspath(path), runs, raw, code,
-                    warnings=[msg + (f" (in {k} of the {n} runs)" if n > 1 else "")
-                              for msg, k in counts.items()])
+                    warnings=warnings)

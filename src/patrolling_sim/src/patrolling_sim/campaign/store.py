@@ -16,8 +16,9 @@ from patrolling_sim.common.textfile import YamlDumper, YamlLoader
 
 def write_atomic(path, text):
     """Write ``text`` (UTF-8) to ``path`` through ``path.part`` and a rename, so a reader
-    never sees half a file. Plain os.open/os.write: the client writes ~9 files per graph run
-    and this is a third cheaper than a Python file object (bench/notes/campaign.md)."""
+    never sees half a file; returns the number of bytes written. Plain os.open/os.write:
+    the client writes ~9 files per graph run, and this is cheaper than a Python file
+    object (bench/notes/campaign.md)."""
     tmp = path + ".part"
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
@@ -32,6 +33,7 @@ def write_atomic(path, text):
     finally:
         os.close(fd)
     os.replace(tmp, path)
+    return len(data)
 
 
 def load_state(out: str) -> Dict[str, dict]:
@@ -45,6 +47,24 @@ def load_state(out: str) -> Dict[str, dict]:
                 if "key" in rec:
                     state[rec["key"]] = rec
     return state
+
+
+def damaged(out: str, record: dict) -> Optional[str]:
+    """Why the files of a stored run in the campaign folder ``out`` no longer match its
+    record (a file missing, or of another size than stored), or None when they match. A
+    record written before sizes were kept is checked for its info file only."""
+    files = record.get("files")
+    if files is None and record.get("prefix"):
+        files = {record["prefix"] + "_info.csv": None}
+    for rel, size in (files or {}).items():
+        path = os.path.join(out, rel)
+        try:
+            actual = os.path.getsize(path)
+        except OSError:
+            return f"{rel} is missing"
+        if size is not None and actual != size:
+            return f"{rel} has {actual} bytes, {size} when stored"
+    return None
 
 
 def needs_run(record: Optional[dict], retry_failed: bool) -> bool:
@@ -84,9 +104,11 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign,
             rel = f"{prefix}_{k}"
         if next_free is not None:
             next_free[prefix] = k + 1
+        written = {}
         for p, text in files.items():
             target = rel + p[len(prefix):] if p.startswith(prefix) else p
-            write_atomic(os.path.join(base, target), text)
+            written[os.path.join(RESULTS_DIR, target)] = write_atomic(
+                os.path.join(base, target), text)
         dest_prefix = os.path.join(RESULTS_DIR, rel)
     record = {"key": spec.key, "mode": spec.mode, "config": spec.config,
               "status": result.get("status") or "CRASHED", "rc": result.get("rc"),
@@ -94,6 +116,8 @@ def store_result(out: str, spec: RunSpec, result: dict, campaign: Campaign,
               "cpu_s": round(float(result.get("cpu_s") or 0.0), 3),
               "code": campaign.code, "provenance": result.get("provenance"),
               "metrics": metrics}
+    if prefix:
+        record["files"] = written
     if result.get("start_vertices") is not None:
         record["start_vertices"] = [int(v) for v in result["start_vertices"]]
     if result.get("error"):

@@ -13,6 +13,7 @@ Output files in ``out_dir``:
 - ``scenario_<k>_<map>_<N>.png``: graph idleness over time with failure times marked, when
   runs have a ``_scenario.yaml`` (section "Scenarios", :mod:`patrolling_sim.report.scenarios`).
 """
+import collections
 import datetime
 import logging
 import os
@@ -24,6 +25,7 @@ from patrolling_sim.report import figures
 from patrolling_sim.report import html as H
 from patrolling_sim.report import plots
 from patrolling_sim.report.loading import load_runs
+from patrolling_sim.report.result_sets import UNREADABLE, UnreadableRun
 from patrolling_sim.report.stats import pvalue_matrices, significance
 from patrolling_sim.report.table import (METRIC_LABELS, METRICS, fmt_mean_sd, group_columns,
                                          run_table, summary_table, varying_settings)
@@ -58,10 +60,12 @@ def _no_complete_run(excluded):
     counts = {}
     for r, _ in excluded:
         counts[r.status] = counts.get(r.status, 0) + 1
+    unreadable = [why for r, why in excluded if r.status == UNREADABLE]
     return PatrolInputError(
         "argument RESULTS_DIR: no complete run to report ("
         + ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
-        + "; only TIMEOUT/CYCLES/STOPPED runs are used, FAIL with --include-fail)")
+        + "; only TIMEOUT/CYCLES/STOPPED runs are used, FAIL with --include-fail)"
+        + (f"; first unreadable: {unreadable[0]}" if unreadable else ""))
 
 
 def _add_run_warnings(runs, warnings):
@@ -127,9 +131,12 @@ def _write_tables(out_dir, summary, per_run, sig, excluded_df):
 def _intro(runs, dirs, excluded, warnings):
     """The report's opening HTML: what was loaded and when, how the metrics are computed,
     and the warnings (if any)."""
-    intro = (f"<p>{len(runs)} run(s) from {', '.join(H.esc(d) for d in dirs)}"
-             + (f" ({len(excluded)} more excluded: they did not end normally, see "
-                f"<i>Excluded runs</i>)" if excluded else "") + ". Generated "
+    reasons = collections.Counter(r.status for r, _ in excluded)
+    intro = (f"<p>{len(runs) + len(excluded)} result set(s) found in "
+             f"{', '.join(H.esc(d) for d in dirs)}: {len(runs)} used"
+             + (f", {len(excluded)} excluded (" + ", ".join(
+                 f"{n} {H.esc(s or '?')}" for s, n in sorted(reasons.items()))
+                + "; see <i>Excluded runs</i>)" if excluded else "") + ". Generated "
              f"{H.esc(datetime.datetime.now().strftime('%Y-%m-%d %H:%M:%S'))}.</p>"
              "<p class='note'>Idleness metrics come from the idleness.csv samples (one per "
              "vertex visit after the first); complete cycles and interference rate (per "
@@ -157,7 +164,8 @@ def _summary_html(summary, gcols):
 def _excluded_html(excluded):
     """The HTML of the excluded runs ``[(run, why)]``: a note and their table."""
     return ("<p class='note'>Not averaged: these runs did not end normally (their metrics "
-            "cover a truncated or failed run).</p>" +
+            "cover a truncated or failed run), or their result files could not be read "
+            "(UNREADABLE: a malformed or partial file, or no info.csv).</p>" +
             H.table(["run", "algorithm", "N", "status", "sim time (s)", "why"],
                     [[r.run_id, r.info["algorithm"], str(r.info["team_size"]),
                       r.status, f"{r.info['sim_duration']:.1f}", why]
@@ -234,8 +242,9 @@ def build_report(dirs, out_dir, title=None, run_plots=True, include_fail=False):
         PatrolInputError: a bad input path or a malformed result file, no complete run,
         or an output folder that cannot be made.
     """
-    all_runs, warnings = load_runs(dirs, slim=not run_plots)
+    all_runs, warnings, unreadable = load_runs(dirs, slim=not run_plots)
     runs, excluded = select_runs(all_runs, include_fail)
+    excluded += [(UnreadableRun(p), why) for p, why in unreadable]
     if not runs:
         raise _no_complete_run(excluded)
     _add_run_warnings(runs, warnings)

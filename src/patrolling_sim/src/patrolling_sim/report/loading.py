@@ -33,6 +33,7 @@ from patrolling_sim.monitor.metrics import compute_metrics
 from patrolling_sim.monitor.metrics import read_visits
 from patrolling_sim.monitor.run_status import read_run_yaml
 from patrolling_sim.monitor.run_status import silences_of
+from patrolling_sim.report.result_sets import IDLENESS_SUFFIX, INFO_SUFFIX, find_result_sets
 
 log = logging.getLogger(__name__)
 
@@ -46,8 +47,6 @@ _FLOAT_FIELDS = ("goal_wait", "comm_delay", "sim_duration", "real_duration", "id
                  "idl_avg", "idl_stddev", "idl_max", "interference_rate",
                  "avg_visits_per_node")
 IDLENESS_COLUMNS = ("Time", "Robot", "Node", "Idleness", "Interferences")
-INFO_SUFFIX = "_info.csv"
-IDLENESS_SUFFIX = "_idleness.csv"
 
 
 @dataclass
@@ -212,50 +211,6 @@ def _read_idleness_numeric(path):
     return frame
 
 
-def find_runs(dirs):
-    """Return (prefixes, warnings): every run prefix under ``dirs`` (sorted, de-duplicated
-    by real path) and one warning line per idleness file without an info file.
-
-    Raises:
-        PatrolInputError: a path that does not exist, or no results under any of them.
-    """
-    prefixes = {}
-    orphans = []
-    for d in dirs:
-        if not os.path.exists(d):
-            raise PatrolInputError(f"argument RESULTS_DIR: '{d}' does not exist")
-        if os.path.isfile(d):
-            if d.endswith(INFO_SUFFIX):
-                candidates = [(os.path.dirname(d) or ".", [], [os.path.basename(d)])]
-            else:
-                raise PatrolInputError(f"argument RESULTS_DIR: '{d}' is a file but not a "
-                                       f"*{INFO_SUFFIX} file")
-        else:
-            candidates = os.walk(d, onerror=None, followlinks=False)
-        found_here = 0
-        for root, _dirs, files in candidates:
-            names = set(files)
-            for name in files:
-                if name.endswith(INFO_SUFFIX):
-                    p = os.path.join(root, name[: -len(INFO_SUFFIX)])
-                    prefixes.setdefault(os.path.realpath(p), p)
-                    found_here += 1
-                elif name.endswith(IDLENESS_SUFFIX):
-                    stem = name[: -len(IDLENESS_SUFFIX)]
-                    if stem + INFO_SUFFIX not in names:
-                        orphans.append(os.path.join(root, name))
-        if not found_here and not any(o.startswith(os.path.join(d, "")) or o == d
-                                      for o in orphans):
-            raise PatrolInputError(f"argument RESULTS_DIR: '{d}' holds no results "
-                                   f"(no *{INFO_SUFFIX} file)")
-    warnings = [f"{o}: no matching {INFO_SUFFIX} (run did not finish?): skipped"
-                for o in sorted(set(orphans))]
-    if not prefixes:
-        raise PatrolInputError("argument RESULTS_DIR: no finished run (no *_info.csv file) in "
-                               + ", ".join(f"'{d}'" for d in dirs))
-    return sorted(prefixes.values()), warnings
-
-
 def _config_number(prefix, key):
     """The number ``key`` of ``<prefix>_config.yaml`` (written by the runner), or None if
     there is no such file or value."""
@@ -364,7 +319,20 @@ def _extended_from_visits(visits, info):
 
 def load_runs(dirs, slim=False):
     """Find and load every run under ``dirs`` (``slim``: see :func:`load_run`). Returns
-    (runs, warnings)."""
-    prefixes, warnings = find_runs(dirs)
-    runs = [load_run(p, slim) for p in prefixes]
-    return runs, warnings
+    (runs, warnings, unreadable): ``unreadable`` lists ``(prefix, why)`` for every result set
+    that could not be used: a malformed or partial file (the error's line), or a
+    ``_run.yaml`` without an info file (the status it records). A report excludes them and
+    says so; it never refuses the other runs because of them."""
+    found = find_result_sets(dirs)
+    runs, unreadable = [], []
+    for p in found.prefixes:
+        try:
+            runs.append(load_run(p, slim))
+        except PatrolInputError as e:
+            unreadable.append((p, f"unreadable result files: {e}"))
+    for p in found.unfinished:
+        rec = read_run_yaml(p) or {}
+        unreadable.append((p, f"no {INFO_SUFFIX} (the monitor wrote none); _run.yaml "
+                              f"records status {rec.get('status') or '?'}"
+                              + (f": {rec['reason']}" if rec.get("reason") else "")))
+    return runs, found.warnings, sorted(unreadable)

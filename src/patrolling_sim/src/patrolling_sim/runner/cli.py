@@ -211,6 +211,8 @@ def main(argv):
         configs = [c.updated(overrides, "command line") for c in load_batch(args.batch, base)]
         for k, c in enumerate(configs):
             try:
+                if not args.dry_run:
+                    c.check_environment()
                 c.validate()
             except PatrolInputError as e:
                 raise PatrolInputError(f"{args.batch}: entry {k + 1}: {e}") from None
@@ -253,7 +255,10 @@ def main(argv):
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         return run_gui(os.path.abspath(sys.argv[0]),
                        load_config_file(args.config) if args.config else None)
-    cfg = config_from_args(args).validate()
+    cfg = config_from_args(args)
+    if not args.dry_run:
+        cfg.check_environment()
+    cfg.validate()
     if args.dry_run:
         exp = Experiment(cfg)
         prefix = exp.prepare()

@@ -155,6 +155,26 @@ class ExperimentConfig:
         return out
 
     # ------------------------------------------------------------------ validation
+    def check_environment(self):
+        """What running (not only validating) needs around the run, checked before anything
+        starts: a display for ``--rviz`` and ``--gui-sim`` (``$DISPLAY``), and a map name
+        without whitespace (the agents and the monitor get it as one command-line word, as
+        in the original). Returns self.
+
+        Raises:
+            PatrolInputError: one line naming the argument.
+        """
+        for flag, wanted in (("--rviz", self.rviz), ("--gui-sim", self.gui_sim)):
+            if wanted and not os.environ.get("DISPLAY"):
+                raise PatrolInputError(f"argument {flag}: needs a display and DISPLAY is not "
+                                       f"set (run under X or xvfb-run, or drop {flag})")
+        name = paths.map_name(self.map)
+        if any(c.isspace() for c in name):
+            raise PatrolInputError(f"argument --map: the map's name '{name}' holds a space; "
+                                   "the nodes take it as one command-line word: rename its "
+                                   "files (a folder with spaces is fine)")
+        return self
+
     def validate(self, check_start_positions=True, check_writable=True):
         """Check every field; return self. Raises PatrolInputError (one line)."""
         if not self.map:

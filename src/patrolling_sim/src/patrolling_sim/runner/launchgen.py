@@ -148,8 +148,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
         _abstract_world(a, cfg, n)
     else:
         n_vertices = _simulator(a, cfg, yaml_path, graph_path, poses, snapshot_dir)
-        a('  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" '
-          f'args={_attr(yaml_path)} output="log"/>')
+        a('  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" output="log">')
+        a(f'    <param name="map_yaml" value={_attr(yaml_path)}/>')
+        a('  </node>')
         a("")
         robot_launch = "$(find patrolling_sim)/launch/robot.launch"
         _robots(a, cfg, positions, yaw, robot_launch, yaml_path, nav_mode, store)
