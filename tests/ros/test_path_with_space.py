@@ -1,5 +1,5 @@
-"""A map in a folder whose path holds a space runs on the full stack (the map server takes
-the path as a parameter, not as a launch file's whitespace-split ``args``)."""
+"""A map in a folder whose path holds a space runs on the full stack (the launch file quotes
+the path it passes to the map server in ``args``, which roslaunch splits as a shell does)."""
 import glob
 import os
 import shutil

@@ -66,8 +66,8 @@ def test_a_map_name_with_a_space(tmp_path):
         shutil.copy(os.path.join(src, f), d / f.replace("grid", "my grid"))
     yaml_path = d / "my grid.yaml"
     yaml_path.write_text(yaml_path.read_text().replace("grid.", "my grid."))
-    line = _one_line_exit_2(_run([sys.executable, os.path.join(SCRIPTS,
-                                                              "start_experiments.py"),
-                                  "--headless", "--map", str(yaml_path), "--robots", "2",
-                                  "--alg", "CR", "--results-dir", str(tmp_path / "r")]))
+    start = os.path.join(SCRIPTS, "start_experiments.py")
+    line = _one_line_exit_2(_run([sys.executable, start, "--headless", "--map", str(yaml_path),
+                                  "--robots", "2", "--alg", "CR",
+                                  "--results-dir", str(tmp_path / "r")]))
     assert "holds a space" in line

@@ -27,6 +27,7 @@ one ``abstract_world`` node (straight-line motion, see :func:`_abstract_world`).
 """
 import math
 import os
+import shlex
 from xml.sax.saxutils import quoteattr
 
 from spqrel_nav_lite import plan_store
@@ -148,9 +149,9 @@ def generate_launch(cfg, positions, run_prefix, snapshot_dir=None, yaw=math.pi /
         _abstract_world(a, cfg, n)
     else:
         n_vertices = _simulator(a, cfg, yaml_path, graph_path, poses, snapshot_dir)
-        a('  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" output="log">')
-        a(f'    <param name="map_yaml" value={_attr(yaml_path)}/>')
-        a('  </node>')
+        # roslaunch splits args as a shell would: the quoted path keeps its spaces
+        a('  <node pkg="spqrel_nav_lite" type="map_server" name="map_server" '
+          f'args={_attr(shlex.quote(yaml_path))} output="log"/>')
         a("")
         robot_launch = "$(find patrolling_sim)/launch/robot.launch"
         _robots(a, cfg, positions, yaw, robot_launch, yaml_path, nav_mode, store)
