@@ -357,13 +357,13 @@ def test_extended_metrics_from_the_visit_log_or_the_campaign_file(tmp_path):
     from patrolling_sim.monitor.metrics import compute_metrics, read_visits
     from patrolling_sim.model.map_bundle import vertex_count
     from patrolling_sim.report.loading import load_run
-    from patrolling_sim.report.result_sets import find_runs
+    from patrolling_sim.report.result_sets import find_result_sets
     res = tmp_path / "res"
     p = subprocess.run([sys.executable, GRAPH_SIM, "--map", "grid", "--robots", "2", "--alg",
                         "CR", "--duration", "600", "--seed", "1", "--results-dir", str(res)],
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
-    (prefix,), _ = find_runs([str(res)])
+    (prefix,) = find_result_sets([str(res)]).prefixes
     run = load_run(prefix)
     info = run.info
     m = compute_metrics(read_visits(prefix + "_visits.csv"), vertex_count("grid"),

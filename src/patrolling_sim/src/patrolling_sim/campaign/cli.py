@@ -65,11 +65,10 @@ def print_dry_run(camp, out, retry_failed):
         print(f"{r.key}  {'run ' if todo else 'done'}  {r.label()}")
 
 
-def own_result_sets(camp, out):
-    """The result files of ``camp``'s own runs in the folder ``out``, from their state
-    records: each run's info file, or its ``_run.yaml`` when it has none (the report lists
-    such runs). Never what else lies in the folder."""
-    state = load_state(out)
+def own_result_sets(camp, out, state):
+    """The result files of ``camp``'s own runs in the folder ``out``, from their records in
+    ``state`` (by run key): each run's info file, or its ``_run.yaml`` when it has none (the
+    report lists such runs). Never what else lies in the folder."""
     sets = []
     for r in camp.runs:
         prefix = (state.get(r.key) or {}).get("prefix")
@@ -83,15 +82,15 @@ def own_result_sets(camp, out):
     return sets
 
 
-def write_report(camp, out):
-    """Write the HTML report of ``camp``'s own runs in the folder ``out`` into
-    ``out/report`` (:func:`own_result_sets`) and print its path; per-run time plots only up
-    to REPORT_RUN_PLOTS_MAX runs. Never raises on a report error: the table is the product,
-    so the error is printed as a warning and an older report is removed."""
+def write_report(camp, out, state):
+    """Write the HTML report of ``camp``'s own runs in the folder ``out`` (their records in
+    ``state``, :func:`own_result_sets`) into ``out/report`` and print its path; per-run time
+    plots only up to REPORT_RUN_PLOTS_MAX runs. Never raises on a report error: the table
+    is the product, so the error is printed as a warning and an older report is removed."""
     per_run = len(camp.runs) <= REPORT_RUN_PLOTS_MAX
     page = os.path.join(out, "report", "report.html")
     try:
-        sets = own_result_sets(camp, out)
+        sets = own_result_sets(camp, out, state)
         if not sets:
             raise PatrolInputError("no run of this campaign has result files")
         build_report(sets, os.path.join(out, "report"), run_plots=per_run)
@@ -133,7 +132,7 @@ def run_command(args):
         print(f"table: {res['table']}")
         if not a.no_report and not res["interrupted"] and os.path.isdir(
                 os.path.join(out, RESULTS_DIR)):
-            write_report(camp, out)
+            write_report(camp, out, res["state"])
     if res["interrupted"]:
         return 130 if res["signal"] == signal.SIGINT else 143
     return 0

@@ -323,7 +323,8 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
     Returns:
         dict: ``ran`` and ``skipped`` (run counts), ``redone`` (finished runs whose files
         no longer matched their records, run again), ``interrupted`` (bool), ``signal`` (the
-        signal number or None) and ``table`` (the path of ``runs.csv``).
+        signal number or None), ``table`` (the path of ``runs.csv``) and ``state`` (the
+        folder's state records by run key, this call's included).
 
     Ctrl-C (or SIGTERM) stops cleanly: runs in progress are cancelled, every finished run's
     files and record are complete, and the next call resumes.
@@ -358,7 +359,8 @@ def run_campaign(campaign: Campaign, out: str, scheduler: Optional[str] = None,
             for s, h in old.items():
                 signal.signal(s, h)
     return {"ran": run.ran, "skipped": run.skipped, "redone": run.redone,
-            "interrupted": stopped, "signal": run.sig if stopped else None, "table": table}
+            "interrupted": stopped, "signal": run.sig if stopped else None, "table": table,
+            "state": run.state}
 
 
 #: provenance: the packages whose versions a campaign records (module name: distribution)

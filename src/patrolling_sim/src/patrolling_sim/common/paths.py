@@ -14,6 +14,7 @@ Two layouts are recognised from this file's place:
 
 ``$PATROLLING_SIM_DATA``, if set, overrides where the data (maps, params, MSP) is read.
 """
+import functools
 import os
 
 from patrolling_sim.common.errors import PatrolInputError
@@ -39,8 +40,10 @@ def install_prefix():
     return prefix if os.path.isfile(share) else None
 
 
+@functools.lru_cache(maxsize=1)
 def _layout():
-    """("source", root) or ("install", prefix). Raises PatrolInputError in neither."""
+    """("source", root) or ("install", prefix), found once per process (every map lookup
+    asks). Raises PatrolInputError in neither (not cached: asked again next time)."""
     root = source_root()
     if root:
         return "source", root

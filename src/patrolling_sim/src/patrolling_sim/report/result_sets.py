@@ -33,13 +33,6 @@ class UnreadableRun:
         self.run_id = "/".join(parts[-4:])
 
 
-def find_runs(dirs):
-    """Return (prefixes, warnings): every run prefix under ``dirs`` with an info file, and
-    the warnings of :func:`find_result_sets`."""
-    found = find_result_sets(dirs)
-    return found.prefixes, found.warnings
-
-
 @dataclass
 class ResultSets:
     """What :func:`find_result_sets` found: ``prefixes`` of runs with an info file (sorted,
