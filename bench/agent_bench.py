@@ -26,7 +26,8 @@ import tempfile
 import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+for _pkg in ("spqrel_nav_lite", "patrolling_sim"):   # the workspace's packages, unsourced
+    sys.path.insert(0, os.path.join(ROOT, "src", _pkg, "src"))
 from procstat import cpu_ticks  # noqa: E402
 
 CLK = os.sysconf("SC_CLK_TCK")

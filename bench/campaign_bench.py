@@ -39,8 +39,10 @@ import tempfile
 import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
-SRC = os.path.join(ROOT, "src", "patrolling_sim", "src")
-sys.path.insert(0, SRC)
+#: the workspace's two Python packages' source folders (the programs need both, unsourced)
+SRC = os.pathsep.join(os.path.join(ROOT, "src", p, "src")
+                      for p in ("patrolling_sim", "spqrel_nav_lite"))
+sys.path[:0] = SRC.split(os.pathsep)
 
 
 def campaign_file(d, a, runs=None, name="bench.yaml"):

@@ -17,7 +17,8 @@ import sys
 import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+for _pkg in ("spqrel_nav_lite", "patrolling_sim"):   # the workspace's packages, unsourced
+    sys.path.insert(0, os.path.join(ROOT, "src", _pkg, "src"))
 
 from patrolling_sim.common import paths  # noqa: E402
 from patrolling_sim.algorithms.cgg import original_cyclic_route  # noqa: E402

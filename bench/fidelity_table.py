@@ -34,6 +34,8 @@ def _import(src):
         # a source tree outside a checkout: read maps and params from this one
         os.environ.setdefault("PATROLLING_SIM_DATA", ROOT)
     sys.path.insert(0, os.path.abspath(src))
+    # the navigation package beside it (the package imports its map loader and errors)
+    sys.path.insert(1, os.path.abspath(os.path.join(src, "..", "..", "spqrel_nav_lite", "src")))
     from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
     from patrolling_sim.graphsim.config import GraphSimConfig  # noqa: E402
     from patrolling_sim import algorithms  # noqa: E402

@@ -24,7 +24,7 @@ ALGS = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG"
 
 CHILD = r"""
 import json, resource, sys, time
-sys.path.insert(0, %r)
+sys.path[:0] = [%r, %r]
 from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.graphsim.simulator import GraphSimulator
 cfg = GraphSimConfig(map=%r, robots=%d, alg=%r, duration=%f, seed=1, **%r)
@@ -52,6 +52,7 @@ def main():
                     help="graph mode's interference model (default: GraphSimConfig's, on)")
     a = ap.parse_args()
     src = os.path.join(ROOT, "src", "patrolling_sim", "src")
+    nav_src = os.path.join(ROOT, "src", "spqrel_nav_lite", "src")
     lines = [f"Graph mode, {a.duration:.0f} s simulated per run, seed 1, no files written. "
              f"Machine: {platform.node()}, {os.cpu_count()} cores, "
              f"{platform.processor() or platform.machine()}; {datetime.date.today()}.",
@@ -70,7 +71,7 @@ def main():
             for alg in a.algs:
                 t0 = time.perf_counter()
                 out = subprocess.run([sys.executable, "-c",
-                                      CHILD % (src, m, n, alg, a.duration, extra)],
+                                      CHILD % (src, nav_src, m, n, alg, a.duration, extra)],
                                      capture_output=True, text=True, timeout=900)
                 proc_wall = time.perf_counter() - t0
                 if out.returncode != 0:

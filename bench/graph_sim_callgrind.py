@@ -28,8 +28,8 @@ DEFAULT_CELLS = ("1r5:12:DTAG,DIAG_labs:12:DTAP,cumberland:8:SEBS,grid:4:CR,brou
                  "move_base_arena:6:GBS,ctcv:12:HPCC")
 
 CHILD = r"""
-import json, sys
-sys.path.insert(0, sys.argv[1])
+import json, os, sys
+sys.path[:0] = [sys.argv[1], os.path.join(sys.argv[1], "..", "..", "spqrel_nav_lite", "src")]
 from patrolling_sim.campaign.tasks import WorldCache, run_graph_task
 from patrolling_sim.graphsim.config import GraphSimConfig
 cells, duration, setup_only = json.loads(sys.argv[2]), float(sys.argv[3]), sys.argv[4] == "1"

@@ -36,7 +36,8 @@ import threading
 import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+for _pkg in ("spqrel_nav_lite", "patrolling_sim"):   # the workspace's packages, unsourced
+    sys.path.insert(0, os.path.join(ROOT, "src", _pkg, "src"))
 from patrolling_sim.runner.proctree import ProcessTree  # noqa: E402
 from procstat import cpu_ticks, pss_kb  # noqa: E402
 

@@ -20,7 +20,8 @@ import platform
 import sys
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+for _pkg in ("spqrel_nav_lite", "patrolling_sim"):   # the workspace's packages, unsourced
+    sys.path.insert(0, os.path.join(ROOT, "src", _pkg, "src"))
 
 from patrolling_sim.common import paths  # noqa: E402
 from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
