@@ -14,7 +14,6 @@ from patrolling_sim.common import paths
 from patrolling_sim.common.cli import CliParser
 from patrolling_sim.common.cli import run_main
 from patrolling_sim.common.errors import PatrolInputError
-from patrolling_sim.report.build import build_report
 
 #: a campaign's report draws one idleness-over-time figure per run only up to this many
 #: runs (each is a PNG of ~0.2 s; the reference campaign has 7020 runs)
@@ -90,6 +89,9 @@ def write_report(camp, out, state):
     per_run = len(camp.runs) <= REPORT_RUN_PLOTS_MAX
     page = os.path.join(out, "report", "report.html")
     try:
+        # deferred: the report layer imports pandas and matplotlib (about 1 s), which a
+        # campaign command needs only when it writes its report
+        from patrolling_sim.report.build import build_report
         sets = own_result_sets(camp, out, state)
         if not sets:
             raise PatrolInputError("no run of this campaign has result files")
