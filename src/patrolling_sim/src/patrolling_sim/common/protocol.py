@@ -29,6 +29,15 @@ MSG_DTA_IDLENESS = 40
 MSG_SSI_TASK_REQUEST = 41
 #: ``[id, 42, vertex, bid]`` DTAP: an answer to an auction with a better bid
 MSG_SSI_BID = 42
+#: ``[id, 54, vertex, ask]`` IC: a robot reached a vertex; ``ask`` 1: it asks the coordinator
+#: for a goal, 0: a visit on its way (or the coordinator's own)
+MSG_IC_REQUEST = 54
+#: ``[id, 55, robot, goal]`` IC: ``robot`` is to head to ``goal`` (from the coordinator, or
+#: from the robot itself when it gave up waiting)
+MSG_IC_ASSIGN = 55
+#: ``[id, 56, vertex, seed]`` AHPA: a robot reached a vertex; its Voronoi cell grows from
+#: ``seed``
+MSG_AHPA_POSITION = 56
 
 #: payloads of MSG_INIT from the monitor / from a robot
 GO = 100
