@@ -33,6 +33,10 @@ estimates above the int16 range are sent as 32000. Parameters from
 ``params/DTA/DTASSI.params`` (timeout 3, theta_idleness 1, theta_navigation 0 -- unused, as in
 the original --, theta_hop -2, threshold 0 -- unused --, hist 0).
 
+DTASSI (:mod:`patrolling_sim.algorithms.dtassi`) is this agent with another bid and no
+partition: it replaces :meth:`DTASSIPart.bid`, :meth:`DTASSIPart.tasks_changed` and
+:meth:`DTASSIPart.auction_wait`.
+
 The life cycle (docs/protocol.md) waits for a decision that is pending. A driver that cannot
 (a test double declaring ``accepts_pending_decision = False``) gets the best candidate by U at
 once instead.
@@ -122,13 +126,25 @@ class DTASSIPart(PatrolStrategy):
         tasks = {v for v, (_, r) in self.best_bid.items() if r == self.id}
         if tasks != self.task_set:
             self.task_set = tasks
-            best, best_sum = self.current, self._sum_cost(self.current)
-            for t in sorted(tasks):
-                if t != self.center:
-                    s = self._sum_cost(t)
-                    if s < best_sum:
-                        best, best_sum = t, s
-            self.center = best
+            self.tasks_changed()
+
+    def tasks_changed(self):
+        """The task set just changed: the partition's centre is recomputed (the current
+        vertex or a task other than the old centre with the smallest summed path cost to all
+        tasks, the current vertex winning ties). A subclass whose bid needs no centre
+        overrides this."""
+        best, best_sum = self.current, self._sum_cost(self.current)
+        for t in sorted(self.task_set):
+            if t != self.center:
+                s = self._sum_cost(t)
+                if s < best_sum:
+                    best, best_sum = t, s
+        self.center = best
+
+    def auction_wait(self):
+        """Seconds an auction waits for bids: ``min(timeout, 1 + 0.1 * |tasks|)``."""
+        return min(self.p["timeout"],
+                   AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * len(self.task_set))
 
     def _hop_terms(self, cv):
         """(theta_hop * hops(cv, .) * V, the vertices unreachable from cv), kept per cv: they
@@ -233,9 +249,7 @@ class DTASSIPart(PatrolStrategy):
         token = self._token
         self.auction = (token, cv, v)
         self.send(MSG_SSI_TASK_REQUEST, v, int16_payload(b))
-        wait = min(self.p["timeout"],
-                   AUCTION_BASE_WAIT + AUCTION_WAIT_PER_TASK * len(self.task_set))
-        self.driver.call_later(wait, lambda: self._auction_end(token))
+        self.driver.call_later(self.auction_wait(), lambda: self._auction_end(token))
 
     def _auction_end(self, token):
         if self.auction is None or self.auction[0] != token:
