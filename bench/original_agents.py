@@ -46,7 +46,7 @@ from patrolling_sim.runner.rosenv import experiment_env, free_port, sourced_env 
 BINARIES = {"RAND": "Random", "CR": "Conscientious_Reactive",
             "HCR": "Heuristic_Conscientious_Reactive", "HPCC": "Conscientious_Cognitive",
             "CGG": "Cyclic", "MSP": "MSP", "GBS": "GBS", "SEBS": "SEBS", "CBLS": "CBLS",
-            "DTAG": "DTAGreedy", "DTAP": "DTASSIPart"}
+            "DTAG": "DTAGreedy", "DTAP": "DTASSIPart", "DTASSI": "DTASSI"}
 #: wall s to wait for a run (x30: about 30 s) before it is stopped and reported
 RUN_LIMIT = 900.0
 
