@@ -29,6 +29,17 @@ MSG_DTA_IDLENESS = 40
 MSG_SSI_TASK_REQUEST = 41
 #: ``[id, 42, vertex, bid]`` DTAP: an answer to an auction with a better bid
 MSG_SSI_BID = 42
+#: ``[id, 50, vertex, next, eta]`` ER: reached a vertex, heading to ``next``, expected there
+#: at ``eta`` (algorithms.msgtime: tenths of a second modulo 32768)
+MSG_ER_VISIT = 50
+#: ``[id, 51, next, eta]`` ER: a new goal without a visit (after a failed goal or a repair)
+MSG_ER_INTENTION = 51
+#: ``[id, 52, vertex, t, prev, t_prev]`` RWF: flag writes at ``vertex``: visited at ``t``,
+#: by a robot coming from ``prev`` (-1: none) that visited it at ``t_prev`` (msgtime codes)
+MSG_RWF_VISIT = 52
+#: ``[id, 53, vertex, next, t]`` RWF: flag write at ``vertex``: a robot left for ``next`` at
+#: ``t`` (msgtime code)
+MSG_RWF_DEPART = 53
 #: ``[id, 54, vertex, ask]`` IC: a robot reached a vertex; ``ask`` 1: it asks the coordinator
 #: for a goal, 0: a visit on its way (or the coordinator's own)
 MSG_IC_REQUEST = 54
