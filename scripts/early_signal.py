@@ -9,22 +9,27 @@ with a traceback) starts the child with SIGINT and SIGTERM blocked
 (``patrolling_sim.runner.batch.spawn_with_signals_held``): a signal sent meanwhile stays
 pending, and :func:`install` unblocks it once the handlers are in place."""
 import os
-import signal
 import sys
+# the interpreter's own signal module (built in, already loaded): the ``signal`` wrapper
+# would first import ``enum``, which widens the window before the handlers exist
+import _signal
+
+#: names of the signals handled here (``signal.Signals`` would need ``enum``)
+_NAMES = {_signal.SIGINT: "SIGINT", _signal.SIGTERM: "SIGTERM"}
 
 
 def install(program):
     """Install the early handlers for ``program`` (its name in the message). Also when
     SIGINT was inherited ignored (``cmd &`` in a script)."""
     def handler(signum, frame):
-        sys.stderr.write(f"{program}: interrupted by {signal.Signals(signum).name} before "
+        sys.stderr.write(f"{program}: interrupted by {_NAMES[signum]} before "
                          "the run started\n")
         sys.stderr.flush()
-        os._exit(143 if signum == signal.SIGTERM else 130)
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
+        os._exit(143 if signum == _signal.SIGTERM else 130)
+    _signal.signal(_signal.SIGINT, handler)
+    _signal.signal(_signal.SIGTERM, handler)
     # delivered now if it came while blocked by the parent (see the module docstring)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    _signal.pthread_sigmask(_signal.SIG_UNBLOCK, {_signal.SIGINT, _signal.SIGTERM})
 
 
 def require(program, modules=()):

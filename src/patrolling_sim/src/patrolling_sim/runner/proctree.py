@@ -45,10 +45,33 @@ def _children_map():
     return kids
 
 
+def proc_label(pid) -> Optional[str]:
+    """A short name for a process, for messages: a ROS node's name (its ``__name:=``
+    argument), else the program (for an interpreter, the script it runs); None if the
+    process is gone."""
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv = [a.decode(errors="replace") for a in f.read().split(b"\0") if a]
+    except OSError:
+        return None
+    for a in argv:
+        if a.startswith("__name:="):
+            return a[len("__name:="):]
+    if not argv:
+        return None
+    prog = os.path.basename(argv[0])
+    if prog.startswith("python") and len(argv) > 1:
+        prog = os.path.basename(argv[1])
+    return prog
+
+
 class ProcessTree:
+    """The descendants of one root process seen so far (see the module docstring)."""
+
     def __init__(self, root_pid):
         self.root = root_pid
         self.known = {}     # pid -> starttime
+        self.labels = {}    # pid -> proc_label, read when the process was first seen
         self.refresh()
 
     def refresh(self):
@@ -60,7 +83,9 @@ class ProcessTree:
             st = proc_stat(pid)
             if st is None:
                 continue
-            self.known.setdefault(pid, st.starttime)
+            if pid not in self.known:
+                self.known[pid] = st.starttime
+                self.labels[pid] = proc_label(pid) or "?"
             stack.extend(kids.get(pid, []))
 
     def alive(self):
@@ -72,6 +97,10 @@ class ProcessTree:
             if st is not None and st.starttime == start and st.state != "Z":
                 out.append(pid)
         return out
+
+    def describe(self, pids) -> str:
+        """``"roslaunch (pid 12), monitor (pid 40)"``: the known processes ``pids``."""
+        return ", ".join(f"{self.labels.get(p, '?')} (pid {p})" for p in pids)
 
     def signal_all(self, sig):
         for pid in self.alive():

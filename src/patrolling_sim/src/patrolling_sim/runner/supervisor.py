@@ -275,37 +275,56 @@ class Experiment:
             self.out(progress_line(w, self.prefix))
         return False
 
+    #: wall s roslaunch gets to exit once every node it started is gone, after a user's
+    #: signal: roslaunch ignores every signal after its first one, and while it is still
+    #: starting the master it keeps waiting for it (up to 10 s) after its nodes are gone
+    ORPHAN_GRACE = 1.0
+
     def _shutdown(self, proc, tree):
         """Orderly shutdown: SIGINT to roslaunch, which stops the nodes (the monitor writes
         its files); a second signal from the user makes it hard; then make sure nothing of
-        ours survives."""
+        ours survives, naming what had to be killed."""
         tree.refresh()
         if proc.poll() is None:
             try:
                 os.kill(proc.pid, signal.SIGINT)
             except OSError:
                 pass
-            first = self._stop_requested()
-            # a user's signal: stop within 10 s (the monitor writes its files on the first
-            # SIGINT at once); otherwise give roslaunch time for an orderly shutdown
-            deadline = time.monotonic() + (6 if signal_name(first) else 20)
-            while proc.poll() is None and time.monotonic() < deadline:
-                try:
-                    time.sleep(0.2)
-                    tree.refresh()
-                except KeyboardInterrupt:
-                    self.request_stop("SIGINT")
-                    break
-                if first is None and self._stop_requested():
-                    first = self._stop_requested()
-                    deadline = min(deadline, time.monotonic() + 6)  # stop within 10 s
+            self._wait_for_roslaunch(proc, tree)
         hard = tree.stop(grace=1.0 if signal_name(self._stop_requested()) else 3.0)
         if hard:
-            self.out(f"warning: killed {len(hard)} process(es) that ignored SIGINT/SIGTERM")
+            self.out(f"warning: killed {len(hard)} process(es) that ignored SIGINT/SIGTERM: "
+                     f"{tree.describe(hard)}")
         try:
             proc.wait(timeout=5)
         except subprocess.TimeoutExpired:
             pass
+
+    def _wait_for_roslaunch(self, proc, tree):
+        """After the SIGINT to roslaunch: wait for it to exit, up to 20 s (6 s after a
+        user's signal, then the caller stops what is left). After a user's signal,
+        roslaunch alone (its nodes gone) gets :data:`ORPHAN_GRACE` s, then it is killed
+        and named."""
+        first = self._stop_requested()
+        deadline = time.monotonic() + (6 if signal_name(first) else 20)
+        orphan_since = None
+        while proc.poll() is None and time.monotonic() < deadline:
+            try:
+                time.sleep(0.2)
+                tree.refresh()
+            except KeyboardInterrupt:
+                self.request_stop("SIGINT")
+                break
+            if first is None and self._stop_requested():
+                first = self._stop_requested()
+                deadline = min(deadline, time.monotonic() + 6)  # stop within 10 s
+            if signal_name(first) and tree.alive() == [proc.pid]:
+                orphan_since = orphan_since or time.monotonic()
+                if time.monotonic() - orphan_since >= self.ORPHAN_GRACE:
+                    self.out("warning: killed roslaunch (pid %d): its nodes had stopped but it "
+                             "kept waiting (it was still starting up)" % proc.pid)
+                    proc.kill()
+                    return
 
     def _finalise(self, run):
         """Decide the status (:mod:`.outcome`), record it in info.csv and
