@@ -22,8 +22,6 @@ a task counter ``n`` that only its partitioned variant updates, so DTASSI's stay
 Parameters: ``params/DTA/DTASSI.params``, as DTAP (timeout 3, theta_idleness 1,
 theta_navigation 0 -- unused --, theta_hop -2, threshold 0 -- unused --, hist 0).
 """
-import numpy as np
-
 from patrolling_sim.algorithms.base import register
 from patrolling_sim.algorithms.dtap import AUCTION_BASE_WAIT, DTASSIPart
 
@@ -31,6 +29,10 @@ from patrolling_sim.algorithms.dtap import AUCTION_BASE_WAIT, DTASSIPart
 @register
 class DTASSI(DTASSIPart):
     name = "DTASSI"
+
+    def __init__(self, ctx):
+        super().__init__(ctx)
+        self._hop_lists = {}        # vertex -> theta_hop * hops(vertex, .) * V, as floats
 
     def tasks_changed(self):
         """Nothing derived from the task set: the bid reads the set itself."""
@@ -43,30 +45,51 @@ class DTASSI(DTASSIPart):
         """The tour the bid for ``v`` is the cost of, as a vertex list: the current vertex,
         the next target (if any), then the remaining tasks and ``v`` by decreasing U from
         the vertex before (first maximum in vertex order), and the current vertex again.
-        Empty when the bid is 0 (``v`` is the next target or the one after)."""
+        Empty when the bid is 0 (``v`` is the next target or the one after).
+
+        Plain Python over the few tasks (a tour visits a handful of vertices; numpy's
+        per-call cost dominated at that size): U is computed as in
+        :meth:`~patrolling_sim.algorithms.dtap.DTASSIPart.utility`, the same products and
+        sums, so the same values."""
         if v in (self.next, self.won):
             return []
-        g = self.gi.values      # the shift since the last update is common to all: same order
+        gv = self.gi.values     # the shift since the last update is common to all: same order
+        th = self.p["theta_idleness"]
         here = self.current
         route = [here]
-        left = np.array(sorted(self.task_set | {v}), dtype=np.intp)
+        left = sorted(self.task_set | {v})
         if self.next is not None:
             route.append(self.next)
-            left = left[left != self.next]
-        while left.size:
-            u = self.utility(route[-1], g)[left]
-            k = int(np.argmax(u))
-            route.append(int(left[k]))
-            left = np.delete(left, k)
+            if self.next in left:
+                left.remove(self.next)
+        idle = {x: th * gv.item(x) for x in left}
+        at = route[-1]
+        while left:
+            row = self._hop_row(at)
+            best_k, best_u = 0, idle[left[0]] + row[left[0]]
+            for k in range(1, len(left)):
+                u = idle[left[k]] + row[left[k]]
+                if u > best_u:
+                    best_k, best_u = k, u
+            at = left.pop(best_k)
+            route.append(at)
         route.append(here)
         return route
+
+    def _hop_row(self, at):
+        """``theta_hop * hops(at, .) * V`` as a list of floats, kept per vertex."""
+        row = self._hop_lists.get(at)
+        if row is None:
+            row = (self.p["theta_hop"] * self.hops[at] * self.graph.n).tolist()
+            self._hop_lists[at] = row
+        return row
 
     def bid(self, v):
         """The summed shortest-path cost of :meth:`tour`, leg after leg (0 for the next
         target and the one after)."""
-        D = self.graph.dist
+        cost = self.graph.dist.item
         route = self.tour(v)
-        cost = 0.0
-        for a, b in zip(route, route[1:]):
-            cost += float(D[a, b])
-        return cost
+        total = 0.0
+        for k in range(len(route) - 1):
+            total += cost(route[k], route[k + 1])
+        return total
