@@ -2,14 +2,15 @@
 
 - :class:`CliParser`: argparse parser whose errors are one line (no usage dump), exit 2.
 - :func:`run_main`: runs a ``main(argv)``; a :class:`PatrolInputError` (or an OSError on a
-  user-named file) becomes ``<prog>: error: <one line>`` on stderr and exit status 2;
+  user-named file) becomes ``<prog>: error: <one line>`` on stderr and exit status 2; a
+  full disk (:class:`NoSpaceError`, or an OSError ENOSPC/EDQUOT) one line and exit 1;
   Ctrl-C exits 130 without a traceback.
 """
 import argparse
 import logging
 import sys
 
-from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.common.errors import NoSpaceError, PatrolInputError, is_no_space
 
 
 class CliParser(argparse.ArgumentParser):
@@ -45,6 +46,14 @@ def run_main(main, prog, argv=None):
     except PatrolInputError as e:
         sys.stderr.write(f"{prog}: error: {e}\n")
         return 2
+    except NoSpaceError as e:
+        sys.stderr.write(f"{prog}: error: {e}\n")
+        return 1
+    except OSError as e:
+        if not is_no_space(e):
+            raise
+        sys.stderr.write(f"{prog}: error: {NoSpaceError(e.filename or '?')}\n")
+        return 1
     except KeyboardInterrupt:
         sys.stderr.write(f"{prog}: interrupted\n")
         return 130

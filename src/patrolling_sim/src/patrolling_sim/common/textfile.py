@@ -1,7 +1,10 @@
 """Reading an input text or YAML file with the project's one-line errors: ``<path>: <what>
 not found``, ``<path>: cannot read <what> (<reason>)``, ``<path>[:line]: invalid YAML``.
 Used by the loaders of batches, DTA parameters, MSP routes and initial poses; also the YAML
-emitter and loader of records written and read in bulk."""
+emitter and loader of records written and read in bulk, and the atomic writer of small
+files (:func:`write_atomic`)."""
+import os
+
 import yaml
 
 from patrolling_sim.common.errors import PatrolInputError
@@ -35,3 +38,24 @@ def read_yaml(path, what):
 YamlDumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 #: LibYAML's safe loader when PyYAML has it, else PyYAML's own
 YamlLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def write_atomic(path, text):
+    """Write ``text`` (UTF-8) to ``path`` atomically: into a temporary file beside it, then
+    renamed into place. On any failure (a full disk included) the temporary file is removed
+    and the error raised: ``path`` keeps its old content, nothing half-written is left.
+    Returns ``path``."""
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException as e:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(e, OSError) and e.filename == tmp:
+            e.filename = path          # name the file the caller asked for
+        raise
+    return path

@@ -1,11 +1,16 @@
 """Inputs of a graph-mode run (:mod:`patrolling_sim.graphsim.simulator`) and the world's constants
 (``docs/protocol.md``, "Graph mode"; scenarios: ``docs/scenarios.md``)."""
+import dataclasses
 import math
 from dataclasses import dataclass, field
+from typing import Sequence
+
+import yaml
 
 from patrolling_sim.experiment import validation
 from patrolling_sim.algorithms import REGISTRY
 from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.common.textfile import YamlDumper
 from patrolling_sim.scenarios.scenario import check_scenario
 from patrolling_sim.startpos.explicit import check_initpos
 
@@ -78,3 +83,19 @@ class GraphSimConfig:
         check_scenario(self.comm, self.attrition, self.robots,
                        self.duration if self.duration > 0 else math.inf, self.seed)
         return self
+
+
+def config_yaml(cfg: GraphSimConfig, start_vertices: Sequence[int]) -> str:
+    """The text of a graph-mode run's ``<prefix>_config.yaml``: the fields of ``cfg`` and,
+    after ``initpos``, the resolved ``start_vertices``. ``params`` that YAML cannot write
+    (Python objects given from Python) are written as their ``repr``."""
+    d = {}
+    for key, value in dataclasses.asdict(cfg).items():
+        d[key] = value
+        if key == "initpos":
+            d["start_vertices"] = [int(v) for v in start_vertices]
+    try:
+        return yaml.dump(d, Dumper=YamlDumper, sort_keys=False)
+    except yaml.YAMLError:
+        d["params"] = repr(cfg.params)
+        return yaml.dump(d, Dumper=YamlDumper, sort_keys=False)

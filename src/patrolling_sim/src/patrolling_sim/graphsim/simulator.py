@@ -23,7 +23,6 @@ The world this module adds (see ``docs/protocol.md``, "Graph mode"):
 
 Deterministic: the same inputs and seed give the same files (apart from wall-clock fields).
 """
-import dataclasses
 import heapq
 import itertools
 import math
@@ -32,18 +31,15 @@ import random
 import time
 from typing import Callable, Optional, Sequence
 
-import yaml
-
 from patrolling_sim.common import paths
-from patrolling_sim.common.textfile import YamlDumper
 from patrolling_sim.monitor import run_status
 from patrolling_sim.agent.core import FIRST_ALGORITHM_TYPE, GO, MONITOR_ID
 from patrolling_sim.agent.factory import agent_seed, build_agent
 from patrolling_sim.algorithms.base import MSG_FAILURE
 from patrolling_sim.common.protocol import MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
-from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.common.errors import NoSpaceError, PatrolInputError, is_no_space
 from patrolling_sim.graphsim.config import (FEEDBACK_PERIOD, TIMERESULTS_PERIOD, WRITE_FLUSH_EVERY,
-                                            GraphSimConfig)
+                                            GraphSimConfig, config_yaml)
 from patrolling_sim.graphsim.feedback import FeedbackTicks
 from patrolling_sim.graphsim.motion import Robot
 from patrolling_sim.model.graph import PatrolGraph
@@ -72,22 +68,6 @@ def start_vertices_of(cfg: GraphSimConfig, pgraph: PatrolGraph):
                              load_initial_poses(table_path), table_path, alg=cfg.alg,
                              seed=cfg.seed, map_dir=os.path.dirname(os.path.abspath(yaml_path)))
     return [pgraph.nearest_vertex(x, y) for x, y in pos]
-
-
-def config_yaml(cfg: GraphSimConfig, start_vertices: Sequence[int]) -> str:
-    """The text of a graph-mode run's ``<prefix>_config.yaml``: the fields of ``cfg`` and,
-    after ``initpos``, the resolved ``start_vertices``. ``params`` that YAML cannot write
-    (Python objects given from Python) are written as their ``repr``."""
-    d = {}
-    for key, value in dataclasses.asdict(cfg).items():
-        d[key] = value
-        if key == "initpos":
-            d["start_vertices"] = [int(v) for v in start_vertices]
-    try:
-        return yaml.dump(d, Dumper=YamlDumper, sort_keys=False)
-    except yaml.YAMLError:
-        d["params"] = repr(cfg.params)
-        return yaml.dump(d, Dumper=YamlDumper, sort_keys=False)
 
 
 class GraphSimulator(FeedbackTicks):
@@ -275,84 +255,125 @@ class GraphSimulator(FeedbackTicks):
     # -- run --------------------------------------------------------------------------------
     def run(self, write=True) -> Stats:
         """Simulate until the duration or cycle limit; write the four files if ``write``.
-        Returns the final statistics."""
-        cfg = self.cfg
+        Returns the final statistics. Raises :class:`NoSpaceError` (after recording what it
+        could, status ABORTED) if the results' file system is full."""
         self.wall0 = time.monotonic()
         self.writer = None
-        if write:
-            if self.prefix is None:
-                self.prefix = claim_prefix(default_prefix(cfg.results_dir, self.map_name,
-                                                          cfg.robots, cfg.alg))
-            self.writer = ResultWriter(self.prefix, RunInfo(
-                self.map_name, cfg.robots, cfg.initpos, cfg.gwait, cfg.comm_delay, "graph",
-                cfg.alg, "", hostname(), os.path.basename(self.prefix)),
-                flush_every=WRITE_FLUSH_EVERY)
-            write_start_poses(self.prefix + "_start_poses.txt",
-                              [tuple(self.g.pos[v]) for v in self.start_vertices], self.g,
-                              initpos_label(cfg.initpos, cfg.seed))
-            with open(self.prefix + "_config.yaml", "w", encoding="utf-8") as f:
-                f.write(config_yaml(cfg, self.start_vertices))
+        self.no_space = None
+        stats = None
         try:
-            for r in self.robots:
-                self._make_core(r)
-            # every navigation server is up at once; the monitor sees N announcements: GO
-            self.monitor.start(0.0)
-            for r in self.robots:
-                r.core.ready()
-            for r in self.robots:
-                r.core.on_results([MONITOR_ID, MSG_INIT, GO])
-            self.schedule(TIMERESULTS_PERIOD, self._timeresults)
-            for f in self.schedule_failures:     # sim seconds after GO (t = 0)
-                self.schedule(f.t, lambda k=f.robot: self._fail(k))
-                if f.back is not None:
-                    self.schedule(f.back, lambda k=f.robot: self._repair(k))
-            end = cfg.duration if cfg.duration > 0 else float("inf")
-            self.termination = "TIMEOUT"
-            events = self._events
-            while True:
-                tick_t = self.next_tick_time()   # ticks run after same-time events
-                if events and events[0][0] <= tick_t:
-                    t, _, fn = heapq.heappop(events)
-                elif tick_t < math.inf:
-                    t, fn = tick_t, self.run_tick
-                else:
-                    break
-                if t > end:
-                    break
-                self.t = t
-                fn()
-                if cfg.cycles and self.monitor.cycles >= cfg.cycles:
-                    self.termination = "CYCLES"
-                    break
-            if self.termination == "TIMEOUT" and end < float("inf"):
-                self.t = end
-            stats = self.monitor.stats(self.t)
-            if self.writer:
-                core = self.robots[0].core
-                self.writer.info.algorithm_params = core.strategy.algorithm_params if core else ""
-                self.writer.write_info(stats, time.monotonic() - self.wall0, self.termination)
-            return stats
+            if write:
+                self._open_results()
+            stats = self._simulate()
+        except OSError as e:
+            if not is_no_space(e):
+                raise
+            self._record_no_space(e)
         finally:
             if self.writer:
-                status = self.termination if self.writer.info_written else \
-                    run_status.INTERRUPTED
-                if not self.writer.info_written:     # interrupted: keep what was measured
-                    self.writer.write_info(self.monitor.stats(self.t),
-                                           time.monotonic() - self.wall0, status)
-                self.writer.close()
-                if self.scenario:
-                    self._write_scenario()
-                run_status.write_run_yaml(self.prefix, {
-                    "status": status, "reason": {
-                        run_status.TIMEOUT: f"the duration of {cfg.duration:g} sim s was "
-                                            f"reached",
-                        run_status.CYCLES: f"{cfg.cycles} complete patrol cycles done",
-                        run_status.INTERRUPTED: "interrupted before the end"}.get(status, ""),
-                    "culprit": None, "robots": [], "signal": None,
-                    "sim_time": round(self.t, 1),
-                    "wall_time": round(time.monotonic() - self.wall0, 1),
-                    "longest_silence": [round(x, 1) for x in self.monitor.silences(self.t)],
-                    "exit_code": run_status.exit_code_for(status), "written_by": "graph_sim"})
+                self._close_results()
+        if self.no_space:
+            raise self.no_space
+        return stats
+
+    def _open_results(self):
+        cfg = self.cfg
+        if self.prefix is None:
+            self.prefix = claim_prefix(default_prefix(cfg.results_dir, self.map_name,
+                                                      cfg.robots, cfg.alg))
+        self.writer = ResultWriter(self.prefix, RunInfo(
+            self.map_name, cfg.robots, cfg.initpos, cfg.gwait, cfg.comm_delay, "graph",
+            cfg.alg, "", hostname(), os.path.basename(self.prefix)),
+            flush_every=WRITE_FLUSH_EVERY)
+        write_start_poses(self.prefix + "_start_poses.txt",
+                          [tuple(self.g.pos[v]) for v in self.start_vertices], self.g,
+                          initpos_label(cfg.initpos, cfg.seed))
+        with open(self.prefix + "_config.yaml", "w", encoding="utf-8") as f:
+            f.write(config_yaml(cfg, self.start_vertices))
+
+    def _simulate(self) -> Stats:
+        cfg = self.cfg
+        for r in self.robots:
+            self._make_core(r)
+        # every navigation server is up at once; the monitor sees N announcements: GO
+        self.monitor.start(0.0)
+        for r in self.robots:
+            r.core.ready()
+        for r in self.robots:
+            r.core.on_results([MONITOR_ID, MSG_INIT, GO])
+        self.schedule(TIMERESULTS_PERIOD, self._timeresults)
+        for f in self.schedule_failures:     # sim seconds after GO (t = 0)
+            self.schedule(f.t, lambda k=f.robot: self._fail(k))
+            if f.back is not None:
+                self.schedule(f.back, lambda k=f.robot: self._repair(k))
+        end = cfg.duration if cfg.duration > 0 else float("inf")
+        self.termination = "TIMEOUT"
+        events = self._events
+        while True:
+            tick_t = self.next_tick_time()   # ticks run after same-time events
+            if events and events[0][0] <= tick_t:
+                t, _, fn = heapq.heappop(events)
+            elif tick_t < math.inf:
+                t, fn = tick_t, self.run_tick
+            else:
+                break
+            if t > end:
+                break
+            self.t = t
+            fn()
+            if cfg.cycles and self.monitor.cycles >= cfg.cycles:
+                self.termination = "CYCLES"
+                break
+        if self.termination == "TIMEOUT" and end < float("inf"):
+            self.t = end
+        stats = self.monitor.stats(self.t)
+        if self.writer:
+            core = self.robots[0].core
+            self.writer.info.algorithm_params = core.strategy.algorithm_params if core else ""
+            self.writer.write_info(stats, time.monotonic() - self.wall0, self.termination)
+        return stats
+
+    def _record_no_space(self, e):
+        """Keep the first full-disk error (as a :class:`NoSpaceError`); the run is ABORTED."""
+        if self.no_space is None:
+            self.no_space = NoSpaceError(e.filename or f"{self.prefix}_*")
+
+    def _guarded(self, fn, *args):
+        """``fn(*args)``; a full disk is recorded instead of raised (True if it went well)."""
+        try:
+            fn(*args)
+            return True
+        except OSError as e:
+            if not is_no_space(e):
+                raise
+            self._record_no_space(e)
+            return False
+
+    def _close_results(self):
+        """Finish the result files whatever ended the run: info.csv (INTERRUPTED if the run
+        did not reach its end), the scenario record, ``_run.yaml``; on a full disk, as much
+        of them as fits, status ABORTED, and no temporary file left behind."""
+        cfg, w = self.cfg, self.writer
+        status = self.termination if w.info_written else run_status.INTERRUPTED
+        if not w.info_written:     # interrupted: keep what was measured
+            self._guarded(w.write_info, self.monitor.stats(self.t),
+                          time.monotonic() - self.wall0, status)
+        self._guarded(w.close)
+        if self.scenario:
+            self._guarded(self._write_scenario)
+        if self.no_space:
+            status = run_status.ABORTED
+            self._guarded(run_status.set_info_status, self.prefix, status)
+        reason = str(self.no_space) if self.no_space else {
+            run_status.TIMEOUT: f"the duration of {cfg.duration:g} sim s was reached",
+            run_status.CYCLES: f"{cfg.cycles} complete patrol cycles done",
+            run_status.INTERRUPTED: "interrupted before the end"}.get(status, "")
+        self._guarded(run_status.write_run_yaml, self.prefix, {
+            "status": status, "reason": reason, "culprit": None, "robots": [],
+            "signal": None, "sim_time": round(self.t, 1),
+            "wall_time": round(time.monotonic() - self.wall0, 1),
+            "longest_silence": [round(x, 1) for x in self.monitor.silences(self.t)],
+            "exit_code": run_status.exit_code_for(status), "written_by": "graph_sim"})
 
 
 def run_graph_experiment(cfg: GraphSimConfig, write=True, log=None):

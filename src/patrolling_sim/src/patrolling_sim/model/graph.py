@@ -29,6 +29,7 @@ import networkx as nx
 import numpy as np
 
 from patrolling_sim.common.errors import GraphFormatError
+from patrolling_sim.common.textfile import write_atomic
 from patrolling_sim.model.tables import hop_table, shortest_path_tables
 
 log = logging.getLogger(__name__)
@@ -229,10 +230,7 @@ def format_graph(G):
 
 def write_graph(G, path):
     """Write ``G`` to ``path`` atomically (a temporary file renamed into place)."""
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(format_graph(G))
-    os.replace(tmp, path)
+    write_atomic(path, format_graph(G))
 
 
 def graphs_equal(G1, G2):

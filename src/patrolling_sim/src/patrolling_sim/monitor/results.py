@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import List, Optional
 
 from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.common.textfile import write_atomic
 from patrolling_sim.monitor.core import Stats
 
 IDLENESS_HEADER = "Time;Robot;Node;Idleness;Interferences"
@@ -209,18 +210,24 @@ class ResultWriter:
 
     def write_info(self, stats: Stats, real_elapsed: float, termination: str) -> str:
         """Write ``info.csv`` atomically; returns its path."""
-        path = self.path("info.csv")
-        tmp = path + ".tmp"
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(info_line(self.info, stats, real_elapsed, termination) + "\n")
-        os.replace(tmp, path)
+        path = write_atomic(self.path("info.csv"),
+                            info_line(self.info, stats, real_elapsed, termination) + "\n")
         self.info_written = True
         return path
 
     def close(self) -> None:
+        """Close every file, even if flushing one fails (a full disk); then raise the first
+        error, its ``filename`` set to that file."""
+        first = None
         for f in (self._idl, self._time, self._visits, self._res):
             if not f.closed:
-                f.close()
+                try:
+                    f.close()
+                except OSError as e:
+                    e.filename = e.filename or f.name
+                    first = first or e
+        if first is not None:
+            raise first
 
 
 def parse_info_line(text: str, path: str = "info.csv") -> dict:

@@ -36,10 +36,10 @@ INTERRUPTED    SIGINT (exit 130) or SIGTERM (exit 143), or the run was    130/14
 
 The original writes ``ABORT`` for an aborted run; it is read as ``ABORTED``.
 """
-import os
-
 import yaml
 import glob
+
+from patrolling_sim.common.textfile import write_atomic
 
 TIMEOUT, CYCLES, STOPPED, FAIL = "TIMEOUT", "CYCLES", "STOPPED", "FAIL"
 ABORTED, CRASHED, INTERRUPTED = "ABORTED", "CRASHED", "INTERRUPTED"
@@ -78,12 +78,8 @@ def write_run_yaml(prefix, record):
     """Write ``<prefix>_run.yaml`` atomically (temporary file + rename)."""
     rec = dict(record)
     rec["complete"] = rec.get("status") in NORMAL_ENDS
-    path = run_yaml_path(prefix)
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        yaml.safe_dump(rec, f, sort_keys=False, default_flow_style=False, allow_unicode=True)
-    os.replace(tmp, path)
-    return path
+    text = yaml.safe_dump(rec, sort_keys=False, default_flow_style=False, allow_unicode=True)
+    return write_atomic(run_yaml_path(prefix), text)
 
 
 def read_run_yaml(prefix):
@@ -115,10 +111,7 @@ def set_info_field(prefix, index, value):
     if len(fields) != 22:
         return False
     fields[index] = str(value).replace(";", ",")
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(";".join(fields) + "\n")
-    os.replace(tmp, path)
+    write_atomic(path, ";".join(fields) + "\n")
     return True
 
 

@@ -170,7 +170,9 @@ def print_summary(outcome, out=safe_print):
     line = scenario_summary(outcome.prefix)
     if line:
         out(line)
-    out(f"results: {outcome.prefix}_* (status {outcome.status}, in {outcome.prefix}_run.yaml)")
+    record = f"{outcome.prefix}_run.yaml"
+    where = f"in {record}" if os.path.isfile(record) else "no run record: it could not be written"
+    out(f"results: {outcome.prefix}_* (status {outcome.status}, {where})")
     for f in outcome.files:
         out(f"  {f}")
 

@@ -65,6 +65,7 @@ from dataclasses import dataclass, field
 import yaml
 
 from patrolling_sim.common import paths
+from patrolling_sim.common.textfile import write_atomic
 from patrolling_sim.model import map_bundle
 from patrolling_sim.experiment import validation
 from patrolling_sim.experiment.validation import process_layout
@@ -129,10 +130,7 @@ class ExperimentConfig:
         return yaml.safe_dump(d, sort_keys=False)
 
     def save(self, path):
-        tmp = f"{path}.tmp{os.getpid()}"
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(self.to_yaml())
-        os.replace(tmp, path)
+        write_atomic(path, self.to_yaml())
 
     def updated(self, values, source="config"):
         """Copy with ``values`` (a dict of key -> raw value) applied and type-converted.

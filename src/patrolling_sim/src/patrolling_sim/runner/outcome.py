@@ -6,6 +6,7 @@ a node's death, its own abort reason) and what the monitor wrote (info.csv,
 import os
 from dataclasses import dataclass, field
 
+from patrolling_sim.common.errors import NoSpaceError, free_bytes
 from patrolling_sim.monitor import run_status as rs
 from patrolling_sim.runner.roslaunch_log import describe_node, is_monitor
 
@@ -138,3 +139,23 @@ def summary(status, record, dead_robot_timeout):
         why = f"FAIL: robot(s) {', '.join(map(str, record['robots']))} sent no visit for " \
               f"{dead_robot_timeout:g} sim s"
     return why
+
+
+#: bytes: a run that failed while its results' file system had less than this left is
+#: reported as ended by a full disk (the ROS logs, also written there, fill the last blocks;
+#: the monitor's own error cannot be read when its log could not be written)
+NEARLY_FULL = 1 << 20
+
+
+def no_space_record(prefix, record, missing):
+    """If the run did not end normally (or lacks result files) and the file system of
+    ``prefix`` is full (less than :data:`NEARLY_FULL` bytes left), the record of a run ended
+    by the full disk: status ABORTED, the reason naming the files and the space left. Else
+    None. A user's signal stays the run's status."""
+    if record.get("signal") or (record["status"] in rs.NORMAL_ENDS and not missing):
+        return None
+    free = free_bytes(prefix)
+    if free is None or free >= NEARLY_FULL:
+        return None
+    return dict(record, status=rs.ABORTED, culprit=None,
+                reason=f"{NoSpaceError(prefix + '_*')}: the result files are incomplete")

@@ -38,7 +38,8 @@ from patrolling_sim.monitor import run_status as rs
 from patrolling_sim.monitor.results import claim_prefix as _claim, default_prefix
 from patrolling_sim.runner.launchgen import generate_launch, status_topic
 from patrolling_sim.runner.outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,
-                                           missing_files, read_info, signal_name, summary, timing)
+                                           missing_files, no_space_record, read_info, signal_name,
+                                           summary, timing)
 from patrolling_sim.runner.proctree import ProcessTree
 from patrolling_sim.runner.roslaunch_log import RoslaunchLog, is_monitor
 from patrolling_sim.runner.rosenv import experiment_env, free_port
@@ -345,6 +346,9 @@ class Experiment:
         if missing and code == rs.EXIT_OK:
             status, code = rs.ABORTED, rs.EXIT_FAILED
             record.update(status=status, reason=f"missing result files: {', '.join(missing)}")
+        full = no_space_record(self.prefix, record, missing)
+        if full:
+            record, status, code = full, full["status"], rs.exit_code_for(full["status"])
         if info is not None:
             rs.set_info_status(self.prefix, status)
         sim, _, pace = timing(info, run.watcher, run.go_wall, wall)
@@ -360,7 +364,8 @@ class Experiment:
         try:
             rs.write_run_yaml(self.prefix, record)
         except OSError as e:
-            self.out(f"warning: cannot write {self.prefix}_run.yaml ({e.strerror})")
+            self.out(f"warning: cannot write {self.prefix}_run.yaml ({e.strerror}); its record "
+                     "is on the result line below")
         files = [f"{self.prefix}_{s}" for s in RESULT_SUFFIXES]
         return Outcome(code, summary(status, record, cfg.dead_robot_timeout), self.prefix,
                        [f for f in files if os.path.isfile(f)], sim or 0.0, wall, run.go_wall,

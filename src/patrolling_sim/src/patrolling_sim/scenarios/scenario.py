@@ -24,6 +24,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 from patrolling_sim.scenarios.attrition import Failure, describe, parse_attrition
 from patrolling_sim.scenarios.comm import CommModel, parse_comm
 from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.common.textfile import write_atomic
 import yaml
 from patrolling_sim.model import map_bundle
 from patrolling_sim.monitor.metrics import failure_impact
@@ -88,12 +89,7 @@ def write_scenario(prefix: str, comm_spec: Optional[str], attrition_spec: Option
                      "robots": {int(k): {kk: int(vv) for kk, vv in v.items()}
                                 for k, v in sorted(counters.items())}},
     }
-    path = prefix + SUFFIX
-    tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        yaml.safe_dump(doc, f, sort_keys=False)
-    os.replace(tmp, path)
-    return path
+    return write_atomic(prefix + SUFFIX, yaml.safe_dump(doc, sort_keys=False))
 
 
 def read_scenario(prefix: str) -> Optional[dict]:

@@ -31,7 +31,7 @@ import random
 import numpy as np
 
 from patrolling_sim.common.errors import PatrolInputError
-import os
+from patrolling_sim.common.textfile import write_atomic
 from patrolling_sim.algorithms import REGISTRY
 from patrolling_sim.algorithms import StrategyContext
 from patrolling_sim.algorithms import create
@@ -290,7 +290,4 @@ def write_start_poses(path, positions, pgraph, source):
     lines = [f"# start poses: {source}", "# robot x_m y_m vertex"]
     for k, (x, y) in enumerate(positions):
         lines.append(f"{k} {x:.3f} {y:.3f} {pgraph.nearest_vertex(x, y)}")
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write("\n".join(lines) + "\n")
-    os.replace(tmp, path)
+    write_atomic(path, "\n".join(lines) + "\n")
