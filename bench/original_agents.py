@@ -20,7 +20,7 @@ With ``--ours shared|separate`` every run of the original is followed by a run o
 (seed = run index), so that both see the same machine load.
 
 Usage:
-    bench/original_agents.py --orig-ws PATH --alg DTAP [--runs 20] [--speedup 30]
+    bench/original_agents.py --orig-ws PATH --alg DTAP [--runs 20] [--first 0] [--speedup 30]
                              [--ours separate] [--out DIR] [--json FILE]
 """
 import argparse
@@ -160,6 +160,8 @@ def main():
                     help="catkin workspace with the original's agents built")
     ap.add_argument("--alg", required=True, help=f"one of {', '.join(BINARIES)}")
     ap.add_argument("--runs", type=int, default=20)
+    ap.add_argument("--first", type=int, default=0,
+                    help="index of the first run (our seeds are the run indices)")
     ap.add_argument("--speedup", type=float, default=30.0)
     ap.add_argument("--ours", choices=("shared", "separate"),
                     help="after each run of the original, one of our agents (seed = index)")
@@ -170,6 +172,8 @@ def main():
         ap.error(f"argument --alg: unknown algorithm {a.alg!r} (one of {', '.join(BINARIES)})")
     if a.runs < 1:
         ap.error(f"argument --runs: must be >= 1, got {a.runs}")
+    if a.first < 0:
+        ap.error(f"argument --first: must be >= 0, got {a.first}")
     if a.speedup <= 0:
         ap.error(f"argument --speedup: must be > 0, got {a.speedup:g}")
     ws = os.path.abspath(a.orig_ws)
@@ -184,7 +188,7 @@ def main():
           f"x{a.speedup:g}, files under {out}", flush=True)
     orig_env = sourced_env(os.path.join(ws, "devel", "setup.bash"))
     raw = {"original": [], "ours": []}
-    for k in range(a.runs):
+    for k in range(a.first, a.first + a.runs):
         runs = [("original", lambda d: run_original(ws, orig_env, BINARIES[a.alg], a.alg, k,
                                                     a.speedup, d))]
         if a.ours:
@@ -200,6 +204,9 @@ def main():
                                                    f"{r.info}), left out"), flush=True)
             if ok:
                 raw[who].append(r.figures())
+            elif r.output:
+                with open(os.path.join(d, "runner_output.txt"), "w", encoding="utf-8") as f:
+                    f.write(r.output)
     print(summary("original's agents", raw["original"]))
     if a.ours:
         print(summary(f"our agents (--processes {a.ours})", raw["ours"]))

@@ -37,8 +37,10 @@ def run_dirs(alg, root=DATA):
 
 
 def reference_algorithms():
-    """Registered algorithms that have reference runs (the original's short names)."""
-    return [a for a in names() if run_dirs(a)]
+    """Registered algorithms that have runs of the original (the original's short names):
+    reference runs, or runs of its agents in our abstract world (DTASSI, which the original
+    builds but its launcher does not list, has only the latter)."""
+    return [a for a in names() if run_dirs(a) or agent_run_dirs(a)]
 
 
 def _one(run_dir, pattern):

@@ -65,25 +65,26 @@ def _check(ours, alg, metric):
 
 def test_reference_data_is_there():
     algs = fc.reference_algorithms()
-    assert len(algs) == 11 and "CGG_TSP" not in algs
+    assert len(algs) == 12 and "CGG_TSP" not in algs and "DTASSI" in algs
     assert fc.reference_duration() > 0
     assert all(fc.reference_figures(a) for a in algs)
 
 
-def test_original_agent_runs_are_the_originals_dtap():
-    """The further DTAP runs of the original's agents (README of their folder) ran with the
-    original's shipped DTA parameters (the agents publish them, the monitor writes them into
-    info.csv), over the reference duration, and every robot patrolled."""
-    dirs = fc.agent_run_dirs("DTAP")
-    assert len(dirs) >= 20
-    loaded = fc.agent_run_dirs("DTAP", loaded=True)
-    assert len(loaded) >= 12 and len(fc.loaded_agent_figures("DTAP")) == len(loaded)
+@pytest.mark.parametrize("alg, quiet, loaded_runs", [("DTAP", 20, 12), ("DTASSI", 10, 0)])
+def test_original_agent_runs_are_the_originals(alg, quiet, loaded_runs):
+    """The further runs of the original's DTAP and DTASSI agents (README of their folder) ran
+    with the original's shipped DTA parameters (the agents publish them, the monitor writes
+    them into info.csv), over the reference duration, and every robot patrolled."""
+    dirs = fc.agent_run_dirs(alg)
+    assert len(dirs) >= quiet
+    loaded = fc.agent_run_dirs(alg, loaded=True)
+    assert len(loaded) >= loaded_runs and len(fc.loaded_agent_figures(alg)) == len(loaded)
     for d in dirs + loaded:
         i = fc.info(d)
-        assert (i["algorithm"], i["algorithm_params"]) == ("DTAP", "3,1,0,-2,0,0"), (d, i)
+        assert (i["algorithm"], i["algorithm_params"]) == (alg, "3,1,0,-2,0,0"), (d, i)
         assert i["termination"] == "TIMEOUT" and i["sim_duration"] >= fc.reference_duration()
         assert not fc.stopped_robots(d)
-    assert len(fc.reference_figures("DTAP")) == len(dirs) + len(fc.run_dirs("DTAP"))
+    assert len(fc.reference_figures(alg)) == len(dirs) + len(fc.run_dirs(alg))
 
 
 @pytest.mark.parametrize("alg", _cases("avg"))
@@ -260,7 +261,7 @@ def test_messages_are_sent_after_the_decision_only(alg):
     assert shared() == []
     d.sent.clear()
     s.send_results(6.0)
-    if alg in ("GBS", "SEBS", "CBLS", "DTAG", "DTAP"):
+    if alg in ("GBS", "SEBS", "CBLS", "DTAG", "DTAP", "DTASSI"):
         assert d.sent and d.sent[0][0] == 0 and d.sent[0][1] in (31, 32, 40)
 
 
