@@ -9,7 +9,7 @@ older checkout (the "before" table) and this one.
 
 ``grid``: graph mode in the reference runs' world (grid, 4 robots at vertices 0, 13, 20, 11,
 600 s after GO, straight-line travel where the simulator offers it) against the original's
-own result files under tests/unit/data/original_runs/ and, for DTAP, the further runs of
+own result files under tests/unit/data/original_runs/ and, for DTAP and DTASSI, the runs of
 the original's agents under tests/unit/data/original_agents_abstract_world/.
 
 Usage:
@@ -44,7 +44,8 @@ def _import(src):
 
 def original_names(algorithms):
     """The registered algorithms that carry one of the original's short names."""
-    orig = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
+    orig = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP",
+            "DTASSI"]
     return [a for a in orig if a in algorithms.REGISTRY]
 
 
@@ -106,7 +107,7 @@ def run_grid(a):
     raw = {}
     starts = fc.simulator(algs[0], 0).start_vertices
     print(f"grid, {fc.ROBOTS} robots at vertices {starts}, {fc.reference_duration():.0f} s "
-          f"after GO; original = mean of its runs (tests/unit/data/original_runs; DTAP also "
+          f"after GO; original = mean of its runs (tests/unit/data/original_runs; DTAP, DTASSI: "
           f"tests/unit/data/original_agents_abstract_world), ours = graph mode, mean of seeds "
           f"0..{a.seeds - 1}.\n")
     print("| alg | original avg / max / visits | ours (graph) avg / max / visits | "

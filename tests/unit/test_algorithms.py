@@ -14,8 +14,9 @@ from patrolling_sim.algorithms.testing import (RecordingDriver, deliver, load_gr
 from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.planning.routes import balanced_partition, closed_route, route_cost
 
-#: the original's eleven short names (each must stay registered)
-ORIGINAL = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP"]
+#: the original's short names (each must stay registered): its launcher's eleven and DTASSI
+ORIGINAL = ["RAND", "CR", "HCR", "HPCC", "CGG", "MSP", "GBS", "SEBS", "CBLS", "DTAG", "DTAP",
+            "DTASSI"]
 #: every registered algorithm, the originals and this project's improvements
 ALL = names()
 
@@ -359,7 +360,7 @@ def test_route_followers_build_their_route_before_go(alg, monkeypatch):
     assert other.route == reference.route
 
 
-@pytest.mark.parametrize("alg", ["DTAG", "DTAP"])
+@pytest.mark.parametrize("alg", ["DTAG", "DTAP", "DTASSI"])
 def test_dta_strategies_compute_their_path_table_before_go(alg):
     g = PatrolGraph.load(paths.map_files("cumberland")[1])     # a graph of its own
     s = create(alg, StrategyContext(g, 0, 2, "cumberland", random.Random(0), RecordingDriver(), {}))
