@@ -26,14 +26,16 @@ else
   echo "setup: all ${#PKGS[@]} Debian packages already installed"
 fi
 
-# PyPI-only tools (scripts/requirements-tools.txt) in a venv over Debian's python3, so that
-# Debian's own python packages stay untouched; rebuilt when the requirements change
+# PyPI-only tools (scripts/requirements-tools.txt) and the learning environment's libraries
+# (scripts/requirements-learning.txt: gymnasium, pettingzoo) in a venv over Debian's python3,
+# so that Debian's own python packages stay untouched; rebuilt when the requirements change
 VENV="$ROOT/.venv"
-if [[ ! -x "$VENV/bin/python" ]] || ! cmp -s scripts/requirements-tools.txt "$VENV/requirements-tools.txt"; then
-  echo "setup: installing the PyPI tools of scripts/requirements-tools.txt into .venv/"
+REQS=(scripts/requirements-tools.txt scripts/requirements-learning.txt)
+if [[ ! -x "$VENV/bin/python" ]] || ! cat "${REQS[@]}" | cmp -s - "$VENV/requirements.txt"; then
+  echo "setup: installing the PyPI packages of ${REQS[*]} into .venv/"
   /usr/bin/python3 -m venv --system-site-packages "$VENV"
-  "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r scripts/requirements-tools.txt
-  cp scripts/requirements-tools.txt "$VENV/requirements-tools.txt"
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r "${REQS[0]}" -r "${REQS[1]}"
+  cat "${REQS[@]}" > "$VENV/requirements.txt"
 fi
 
 echo "setup: building the catkin workspace"

@@ -35,6 +35,11 @@ CPP_KEYS = {
     "sensor_msgs": "sensor_msgs", "std_msgs": "std_msgs", "std_srvs": "std_srvs",
     "tf2_msgs": "tf2_msgs", "sys": None,  # <sys/stat.h>: the C library
 }
+# PyPI-only modules (no Debian package, so no rosdep key): the requirements file that
+# scripts/setup.sh installs into .venv/, and the only subpackage allowed to import them (the
+# ROS nodes never do; .importlinter checks that too).
+PYPI_ONLY = {"gymnasium": ("scripts/requirements-learning.txt", "patrolling_sim/envs/"),
+             "pettingzoo": ("scripts/requirements-learning.txt", "patrolling_sim/envs/")}
 # Declared dependencies that no import shows, and why they are needed.
 NOT_IMPORTED = {
     "catkin": "build tool",
@@ -94,6 +99,12 @@ def used_keys(pkg):
     for path, is_test in python_files(pkg):
         for mod in python_imports(path):
             if mod in sys.stdlib_module_names or mod in local or mod == pkg:
+                continue
+            if mod in PYPI_ONLY:
+                req, where = PYPI_ONLY[mod]
+                if where not in path.replace(os.sep, "/"):
+                    unknown.append(f"{os.path.relpath(path, ROOT)}: import {mod} (PyPI only: "
+                                   f"allowed under {where} alone)")
                 continue
             key = PYTHON_KEYS.get(mod, mod if mod in ROS_PYTHON else None)
             if key is None:
@@ -172,3 +183,14 @@ def test_readme_noetic_section_installs_every_dependency():
             if apt not in words:
                 missing.append(f"{apt} (src/{pkg}/package.xml: {key})")
     assert not missing, "README.md ROS Noetic section does not install: " + ", ".join(missing)
+
+
+def test_pypi_only_modules_are_pinned_in_their_requirements_file():
+    """A PyPI-only import is installed by scripts/setup.sh: pinned (==) in its file."""
+    for mod, (req, _) in PYPI_ONLY.items():
+        with open(os.path.join(ROOT, req), encoding="utf-8") as f:
+            pins = re.findall(r"^([A-Za-z0-9_.-]+)==\S+", f.read(), re.M)
+        assert mod in pins, f"{req} does not pin {mod}"
+    with open(os.path.join(ROOT, "scripts", "setup.sh"), encoding="utf-8") as f:
+        setup = f.read()
+    assert all(req in setup for req, _ in PYPI_ONLY.values())

@@ -21,11 +21,13 @@ def build_agent(effects: Effects, graph, robot_id: int, team_size: int, map_name
                 algorithm: str, start_vertex: int, start_position=None, seed: int = 0,
                 params=None, goal_wait: float = 0.0, comm_delay: float = 0.0,
                 loss: float = 0.0, comm="perfect", occupancy=None, positions=None,
-                silence_check: bool = False) -> PatrolAgentCore:
+                silence_check: bool = False, strategy_class=None) -> PatrolAgentCore:
     """A :class:`PatrolAgentCore` running the registered strategy ``algorithm``; the
     strategy's own generator is ``random.Random(seed)``. ``comm`` is a ``--comm`` spec (or a
     model), applied at this robot as the receiver, seeded ``seed * 7919 + 3``; ``occupancy``
     is the map for the range model's line of sight (:mod:`patrolling_sim.agent.faults`).
+    ``strategy_class`` (a :class:`PatrolStrategy` subclass, registered or not) replaces the
+    registered ``algorithm``'s class when given (a learning environment's decision maker).
 
     Raises:
         KeyError: unknown algorithm (one-line message listing the known ones).
@@ -36,6 +38,8 @@ def build_agent(effects: Effects, graph, robot_id: int, team_size: int, map_name
                               params=dict(params or {}),
                               start_position=None if start_position is None
                               else tuple(start_position))
+        if strategy_class is not None:
+            return strategy_class(ctx)
         return create(algorithm, ctx)
     return PatrolAgentCore(effects, robot_id, start_vertex, factory, seed=seed,
                            goal_wait=goal_wait, comm_delay=comm_delay, loss=loss,

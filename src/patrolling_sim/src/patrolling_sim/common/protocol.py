@@ -49,6 +49,9 @@ MSG_IC_ASSIGN = 55
 #: ``[id, 56, vertex, seed]`` AHPA: a robot reached a vertex; its Voronoi cell grows from
 #: ``seed``
 MSG_AHPA_POSITION = 56
+#: ``[id, 57, vertex, next]`` the learning environment's robots (patrolling_sim.envs): reached
+#: a vertex, heading to ``next``; what the teammates believe comes from these
+MSG_LEARNED_VISIT = 57
 
 #: payloads of MSG_INIT from the monitor / from a robot
 GO = 100

@@ -42,41 +42,30 @@ from patrolling_sim.graphsim.config import (FEEDBACK_PERIOD, TIMERESULTS_PERIOD,
                                             GraphSimConfig, config_yaml)
 from patrolling_sim.graphsim.feedback import FeedbackTicks
 from patrolling_sim.graphsim.motion import Robot
+from patrolling_sim.graphsim.starts import start_vertices_of
 from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.monitor.core import MonitorCore, Stats
 from patrolling_sim.monitor.results import (ResultWriter, RunInfo, claim_prefix, default_prefix,
                                             hostname)
-from patrolling_sim.scenarios.scenario import check_scenario
-from patrolling_sim.scenarios.scenario import is_perfect
-from patrolling_sim.scenarios.scenario import write_scenario
-from patrolling_sim.startpos.initial_poses import load_initial_poses
+from patrolling_sim.scenarios.scenario import check_scenario, is_perfect, write_scenario
 from patrolling_sim.startpos.explicit import initpos_label
 from patrolling_sim.startpos.optimised import write_start_poses
-from patrolling_sim.startpos.resolve import start_positions
 from spqrel_nav_lite.mapio import load_map
 
 
-def start_vertices_of(cfg: GraphSimConfig, pgraph: PatrolGraph):
-    """The start vertex of each robot of ``cfg`` on ``pgraph``: the vertices nearest to the
-    start positions of ``cfg.initpos`` (the map's table, computed, optimised, stated
-    vertices or poses, or random from ``cfg.seed``; docs/protocol.md). Raises
-    PatrolInputError when they cannot be placed."""
-    yaml_path, _ = paths.map_files(cfg.map)
-    occ = load_map(yaml_path)
-    table_path = paths.initial_poses_file()
-    pos, _ = start_positions(paths.map_name(cfg.map), cfg.robots, pgraph, occ, cfg.initpos,
-                             load_initial_poses(table_path), table_path, alg=cfg.alg,
-                             seed=cfg.seed, map_dir=os.path.dirname(os.path.abspath(yaml_path)))
-    return [pgraph.nearest_vertex(x, y) for x, y in pos]
-
-
 class GraphSimulator(FeedbackTicks):
-    """One run. Use :meth:`run`; see the module docstring for the model."""
+    """One run. Use :meth:`run`; see the module docstring for the model. A caller that
+    steps the run (a learning environment) calls :meth:`begin`, :meth:`advance` as often
+    as it needs, then :meth:`finish`; ``strategy_class`` replaces the registered ``cfg.alg``
+    (which still names the run)."""
 
     def __init__(self, cfg: GraphSimConfig, start_vertices: Optional[Sequence[int]] = None,
                  pgraph: Optional[PatrolGraph] = None, prefix: Optional[str] = None,
-                 log: Optional[Callable[[str], None]] = None):
+                 log: Optional[Callable[[str], None]] = None, strategy_class=None):
         self.cfg = cfg.validate()
+        #: the robots' strategy class instead of the registered ``cfg.alg`` (None: that one)
+        self.strategy_class = strategy_class
+        self.wall0 = time.monotonic()
         self.map_name = paths.map_name(cfg.map)
         if pgraph is None:
             pgraph = PatrolGraph.load(paths.map_files(cfg.map)[1])
@@ -228,7 +217,8 @@ class GraphSimulator(FeedbackTicks):
                                  params=params, goal_wait=cfg.gwait,
                                  comm_delay=cfg.comm_delay, loss=cfg.loss, comm=cfg.comm,
                                  occupancy=self.occupancy, positions=self.true_position,
-                                 silence_check=bool(self.schedule_failures))
+                                 silence_check=bool(self.schedule_failures),
+                                 strategy_class=self.strategy_class)
         if self.perfect_comm:
             robot.core.team_pos = self.team_pos
 
@@ -292,6 +282,13 @@ class GraphSimulator(FeedbackTicks):
             f.write(config_yaml(cfg, self.start_vertices))
 
     def _simulate(self) -> Stats:
+        self.begin()
+        self.advance()
+        return self.finish()
+
+    def begin(self):
+        """Start a run without writing files (what :meth:`run` does first): build the cores,
+        GO at t = 0, schedule the timers and failures. Then :meth:`advance`, :meth:`finish`."""
         cfg = self.cfg
         for r in self.robots:
             self._make_core(r)
@@ -306,8 +303,15 @@ class GraphSimulator(FeedbackTicks):
             self.schedule(f.t, lambda k=f.robot: self._fail(k))
             if f.back is not None:
                 self.schedule(f.back, lambda k=f.robot: self._repair(k))
-        end = cfg.duration if cfg.duration > 0 else float("inf")
+        self.end = cfg.duration if cfg.duration > 0 else float("inf")
         self.termination = "TIMEOUT"
+
+    def advance(self, stop: Optional[Callable[[], bool]] = None) -> bool:
+        """Run the events in order until the duration or cycle limit (returns True: the run
+        is over), or until ``stop()`` is true after an event (returns False; call again to
+        go on: the same events in the same order as one uninterrupted call)."""
+        cfg = self.cfg
+        end = self.end
         events = self._events
         while True:
             tick_t = self.next_tick_time()   # ticks run after same-time events
@@ -324,8 +328,14 @@ class GraphSimulator(FeedbackTicks):
             if cfg.cycles and self.monitor.cycles >= cfg.cycles:
                 self.termination = "CYCLES"
                 break
+            if stop is not None and stop():
+                return False
         if self.termination == "TIMEOUT" and end < float("inf"):
             self.t = end
+        return True
+
+    def finish(self) -> Stats:
+        """The final statistics (and info.csv when writing) of a run :meth:`advance` ended."""
         stats = self.monitor.stats(self.t)
         if self.writer:
             core = self.robots[0].core
