@@ -3,9 +3,10 @@
 
 Everything but the bid and the auction wait is DTAP's (:mod:`patrolling_sim.algorithms.dtap`):
 the idleness estimate and its type-40 message, the one-ahead decision, the auction sequence
-from ``cv`` over the candidates by ``U(cv, v) = theta_idleness * gi[v] + theta_hop * hops(cv, v)
-* V``, the request/bid messages 41/42, the best-bid table with hysteresis, the tasks (the
-vertices whose best bid is this robot's) and the greedy exception. In the original both agents
+from ``cv`` over the candidates by
+``U(cv, v) = theta_idleness * gi[v] + theta_hop * hops(cv, v) * V``, the request/bid messages
+41/42, the best-bid table with hysteresis, the tasks (the vertices whose best bid is this
+robot's) and the greedy exception. In the original both agents
 share one base class; DTAP only replaces its bid and keeps a task counter.
 
 Bid for vertex v (the cost of a tour through v and all own tasks): 0 if v is already the next
