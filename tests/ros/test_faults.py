@@ -221,10 +221,11 @@ def test_sigint_before_go(tmp_path):
         assert parse_info_line(info)["termination"] == "INTERRUPTED"
 
 
-#: s from a SIGINT during start-up to the runner's exit that tells the two behaviours
-#: apart: waiting out roslaunch (which ignores signals after its first one while it waits
-#: for the master it was starting) took 6 s plus 4 s of signals to its process tree; the
-#: runner now kills roslaunch 1 s after its nodes are gone (about 1.5 s in all)
+#: s from a SIGINT during start-up to the runner's exit that tells the behaviours apart:
+#: waiting out roslaunch (which ignores signals after its first one while it waits for the
+#: master it was starting) and a node busy starting took 6 s plus 4 s of signals to the
+#: process tree; before GO the runner now waits 2 s, then signals with short waits (at most
+#: about 4 s in all, 1.5 s when only roslaunch lingers); the rest is a loaded machine's margin
 EARLY_STOP_BOUND = 8.0
 
 

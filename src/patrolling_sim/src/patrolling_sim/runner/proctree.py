@@ -109,10 +109,12 @@ class ProcessTree:
             except OSError:
                 pass
 
-    def stop(self, grace=10.0):
-        """SIGINT, then SIGTERM, then SIGKILL the survivors; returns the pids killed hard."""
+    def stop(self, grace=10.0, term_wait=3.0):
+        """SIGINT, then (``grace`` s later) SIGTERM, then (``term_wait`` s later) SIGKILL the
+        survivors; returns the pids killed hard."""
         self.refresh()
-        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 3.0), (signal.SIGKILL, 2.0)):
+        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, term_wait),
+                          (signal.SIGKILL, 2.0)):
             if not self.alive():
                 return []
             hard = self.alive() if sig == signal.SIGKILL else []

@@ -170,7 +170,7 @@ class Experiment:
         except KeyboardInterrupt:
             self.request_stop("SIGINT")
         finally:
-            self._shutdown(run.proc, run.tree)
+            self._shutdown(run.proc, run.tree, before_go=run.go_wall is None)
             if run.watcher is not None:
                 run.watcher.close()
             log_file.close()
@@ -280,8 +280,13 @@ class Experiment:
     #: signal: roslaunch ignores every signal after its first one, and while it is still
     #: starting the master it keeps waiting for it (up to 10 s) after its nodes are gone
     ORPHAN_GRACE = 1.0
+    #: wall s for an orderly shutdown after a user's signal; before GO, when no node has
+    #: anything to save and a node busy starting (a navigation function computed in C)
+    #: cannot handle a signal until it is done, the shorter one, then the tree is stopped
+    #: with short waits: a Ctrl-C during start-up ends the runner within about 5 s
+    USER_STOP_WAIT, USER_STOP_WAIT_BEFORE_GO = 6.0, 2.0
 
-    def _shutdown(self, proc, tree):
+    def _shutdown(self, proc, tree, before_go=False):
         """Orderly shutdown: SIGINT to roslaunch, which stops the nodes (the monitor writes
         its files); a second signal from the user makes it hard; then make sure nothing of
         ours survives, naming what had to be killed."""
@@ -291,8 +296,11 @@ class Experiment:
                 os.kill(proc.pid, signal.SIGINT)
             except OSError:
                 pass
-            self._wait_for_roslaunch(proc, tree)
-        hard = tree.stop(grace=1.0 if signal_name(self._stop_requested()) else 3.0)
+            self._wait_for_roslaunch(proc, tree, before_go)
+        user = signal_name(self._stop_requested())
+        hurry = user and before_go
+        hard = tree.stop(grace=0.5 if hurry else 1.0 if user else 3.0,
+                         term_wait=1.0 if hurry else 3.0)
         if hard:
             self.out(f"warning: killed {len(hard)} process(es) that ignored SIGINT/SIGTERM: "
                      f"{tree.describe(hard)}")
@@ -301,13 +309,15 @@ class Experiment:
         except subprocess.TimeoutExpired:
             pass
 
-    def _wait_for_roslaunch(self, proc, tree):
-        """After the SIGINT to roslaunch: wait for it to exit, up to 20 s (6 s after a
-        user's signal, then the caller stops what is left). After a user's signal,
-        roslaunch alone (its nodes gone) gets :data:`ORPHAN_GRACE` s, then it is killed
-        and named."""
+    def _wait_for_roslaunch(self, proc, tree, before_go):
+        """After the SIGINT to roslaunch: wait for it to exit, up to 20 s (after a user's
+        signal :data:`USER_STOP_WAIT` s, before GO :data:`USER_STOP_WAIT_BEFORE_GO` s; then
+        the caller stops what is left). After a user's signal, roslaunch alone (its nodes
+        gone) gets :data:`ORPHAN_GRACE` s, then it is killed and named."""
+        def user_wait():
+            return self.USER_STOP_WAIT_BEFORE_GO if before_go else self.USER_STOP_WAIT
         first = self._stop_requested()
-        deadline = time.monotonic() + (6 if signal_name(first) else 20)
+        deadline = time.monotonic() + (user_wait() if signal_name(first) else 20)
         orphan_since = None
         while proc.poll() is None and time.monotonic() < deadline:
             try:
@@ -318,7 +328,7 @@ class Experiment:
                 break
             if first is None and self._stop_requested():
                 first = self._stop_requested()
-                deadline = min(deadline, time.monotonic() + 6)  # stop within 10 s
+                deadline = min(deadline, time.monotonic() + user_wait())
             if signal_name(first) and tree.alive() == [proc.pid]:
                 orphan_since = orphan_since or time.monotonic()
                 if time.monotonic() - orphan_since >= self.ORPHAN_GRACE:
