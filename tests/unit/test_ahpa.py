@@ -8,24 +8,8 @@ from patrolling_sim.algorithms.ahpa import voronoi_cells
 from patrolling_sim.algorithms.testing import deliver, make_strategy, walk
 from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.graphsim.simulator import GraphSimulator
-from patrolling_sim.model.graph import PatrolGraph, parse_graph
 from patrolling_sim.monitor.metrics import read_visits
-
-
-def graph_from(vertices, edges):
-    """A .graph over ``vertices`` {id: (x_px, y_px)} and undirected ``edges`` {(a, b): cost}."""
-    nb = {v: [] for v in vertices}
-    for (a, b), c in edges.items():
-        nb[a].append((b, c))
-        nb[b].append((a, c))
-    lines = [str(len(vertices)), "100", "100", "0.1", "0", "0", ""]
-    for v in sorted(vertices):
-        x, y = vertices[v]
-        lines += [str(v), str(x), str(y), str(len(nb[v]))]
-        for w, c in nb[v]:
-            lines += [str(w), "N", str(c)]
-        lines.append("")
-    return PatrolGraph(parse_graph("\n".join(lines)))
+from patrolling_sim.algorithms.testing import graph_from
 
 
 #: a corridor 0-1-2-3-4-5-6 (cost 10 per edge) and a dear spur 6-7 (cost 40)

@@ -8,24 +8,12 @@ from patrolling_sim.algorithms.testing import deliver, make_strategy, walk
 from patrolling_sim.common.protocol import MSG_ER_INTENTION, MSG_ER_VISIT
 from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.graphsim.simulator import GraphSimulator
-from patrolling_sim.model.graph import PatrolGraph, parse_graph
+from patrolling_sim.algorithms.testing import graph_from as hand_made_graph
 
 
 def graph_from(vertices, edges):
-    """A patrol graph over ``vertices`` {id: (x_px, y_px)} and undirected ``edges``
-    {(a, b): cost_px}, 0.1 m per pixel."""
-    nb = {v: [] for v in vertices}
-    for (a, b), c in edges.items():
-        nb[a].append((b, c))
-        nb[b].append((a, c))
-    lines = [str(len(vertices)), "400", "400", "0.1", "0", "0", ""]
-    for v in sorted(vertices):
-        x, y = vertices[v]
-        lines += [str(v), str(x), str(y), str(len(nb[v]))]
-        for w, c in nb[v]:
-            lines += [str(w), "N", str(c)]
-        lines.append("")
-    return PatrolGraph(parse_graph("\n".join(lines)))
+    """A hand-made graph on a 400 px map (:func:`~patrolling_sim.algorithms.testing.graph_from`)."""
+    return hand_made_graph(vertices, edges, size_px=400)
 
 
 #: vertex 0 between 1 and 2, both 10 m away (10 s at 1 m/s); 3 hangs off 1 and 2

@@ -18,8 +18,8 @@ from patrolling_sim.common.protocol import INT16_CAP
 from patrolling_sim.algorithms.dta_common import path_hops
 from patrolling_sim.algorithms.dtap import int16_payload
 from patrolling_sim.algorithms.gbs import gbs_params
-from patrolling_sim.model.graph import PatrolGraph, parse_graph
 from patrolling_sim.planning.routes import CRand, hamiltonian_route
+from patrolling_sim.algorithms.testing import graph_from
 
 SEEDS = range(5)
 #: tolerances of the comparison (relative to the mean of the original's runs)
@@ -180,22 +180,6 @@ class FakeDriver(Driver):
 
 class WaitingDriver(FakeDriver):
     accepts_pending_decision = True
-
-
-def graph_from(vertices, edges):
-    """A .graph over ``vertices`` {id: (x_px, y_px)} and undirected ``edges`` {(a, b): cost}."""
-    nb = {v: [] for v in vertices}
-    for (a, b), c in edges.items():
-        nb[a].append((b, c))
-        nb[b].append((a, c))
-    lines = [str(len(vertices)), "100", "100", "0.1", "0", "0", ""]
-    for v in sorted(vertices):
-        x, y = vertices[v]
-        lines += [str(v), str(x), str(y), str(len(nb[v]))]
-        for w, c in nb[v]:
-            lines += [str(w), "N", str(c)]
-        lines.append("")
-    return PatrolGraph(parse_graph("\n".join(lines)))
 
 
 #: vertex 0 in the middle: a cheap edge to 1, dearer ones to 2 and 3; 1-2-3 a path

@@ -8,24 +8,8 @@ from patrolling_sim.algorithms.ic import IdlenessCoordinator
 from patrolling_sim.algorithms.testing import RecordingDriver, deliver, make_strategy
 from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.graphsim.simulator import GraphSimulator
-from patrolling_sim.model.graph import PatrolGraph, parse_graph
 from patrolling_sim.monitor.metrics import read_visits
-
-
-def graph_from(vertices, edges):
-    """A .graph over ``vertices`` {id: (x_px, y_px)} and undirected ``edges`` {(a, b): cost}."""
-    nb = {v: [] for v in vertices}
-    for (a, b), c in edges.items():
-        nb[a].append((b, c))
-        nb[b].append((a, c))
-    lines = [str(len(vertices)), "100", "100", "0.1", "0", "0", ""]
-    for v in sorted(vertices):
-        x, y = vertices[v]
-        lines += [str(v), str(x), str(y), str(len(nb[v]))]
-        for w, c in nb[v]:
-            lines += [str(w), "N", str(c)]
-        lines.append("")
-    return PatrolGraph(parse_graph("\n".join(lines)))
+from patrolling_sim.algorithms.testing import graph_from
 
 
 #: a ring of six vertices, cost 10 per edge

@@ -19,7 +19,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from patrolling_sim.algorithms.base import Driver, PatrolStrategy, StrategyContext, create
 from patrolling_sim.common.paths import map_files
-from patrolling_sim.model.graph import PatrolGraph
+from patrolling_sim.model.graph import PatrolGraph, parse_graph
 
 #: the payload range of a ``/results`` message (std_msgs/Int16MultiArray)
 INT16_MIN, INT16_MAX = -32768, 32767
@@ -70,6 +70,25 @@ class RecordingDriver(Driver):
 
 
 _GRAPHS: Dict[str, PatrolGraph] = {}
+
+
+def graph_from(vertices: Dict[int, Tuple[float, float]], edges: Dict[Tuple[int, int], float],
+               size_px: int = 100) -> PatrolGraph:
+    """A hand-made patrol graph: ``vertices`` {id: (x_px, y_px)}, undirected ``edges``
+    {(a, b): cost}, a ``size_px`` x ``size_px`` map at 0.1 m per pixel, origin (0, 0).
+    Each vertex lists its edges in the order ``edges`` gives them."""
+    nb = {v: [] for v in vertices}
+    for (a, b), c in edges.items():
+        nb[a].append((b, c))
+        nb[b].append((a, c))
+    lines = [str(len(vertices)), str(size_px), str(size_px), "0.1", "0", "0", ""]
+    for v in sorted(vertices):
+        x, y = vertices[v]
+        lines += [str(v), str(x), str(y), str(len(nb[v]))]
+        for w, c in nb[v]:
+            lines += [str(w), "N", str(c)]
+        lines.append("")
+    return PatrolGraph(parse_graph("\n".join(lines)))
 
 
 def load_graph(map_name: str) -> PatrolGraph:
