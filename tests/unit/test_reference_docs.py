@@ -137,3 +137,64 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, case, msg):
     assert not out.exists()
     with pytest.raises(PatrolInputError):
         rd.load_runs(camp)
+
+
+def _starving_runs():
+    """grid_2 DTAG leaves vertices unvisited in seeds 0 and 2 (1 and 3 vertices); 1r5_1 CR in
+    seed 1; nothing else does."""
+    df = _runs().assign(status="TIMEOUT", never_visited=0)
+    df = df.fillna(10.0)
+    sel = (df["map"] == "grid") & (df["robots"] == 2) & (df["alg"] == "DTAG")
+    df.loc[sel & (df["seed"] == 0), "never_visited"] = 1
+    df.loc[sel & (df["seed"] == 2), "never_visited"] = 3
+    df.loc[(df["map"] == "1r5") & (df["robots"] == 1) & (df["alg"] == "CR")
+           & (df["seed"] == 1), "never_visited"] = 2
+    return df
+
+
+def test_never_visited_cells_are_flagged_with_their_cause(tmp_path):
+    causes = tmp_path / "causes.yaml"
+    causes.write_text("- alg: DTAG\n  maps: [grid]\n  robots: all\n  cause: the test's cause.\n"
+                      "  link: algorithms/DTAG.md#x\n- alg: DTAG\n  maps: all\n  robots: [1]\n"
+                      "  cause: another.\n")
+    docs = rd.build_reference_docs(_write(tmp_path, _starving_runs()), "cmd",
+                                   causes_file=str(causes))
+    grid = docs.files["grid.md"]
+    row = _table_rows(grid, 2)["DTAG"]
+    assert row[-1] == "2 of 3 (up to 3)"
+    worst = [h for _, h, _ in rd.METRICS].index("worst idleness [s]")
+    assert row[2 + worst].startswith("≥ ")
+    assert all(c == "" for a, r in _table_rows(grid, 2).items() if a == "CR" for c in r[-1:])
+    assert not any(r[2 + worst].startswith("≥") for r in _table_rows(grid, 1).values())
+    assert ("**DTAG**: in 2 of 3 seeds some vertex was never visited in 300 s" in grid
+            and "Cause: the test's cause. ([more](../algorithms/DTAG.md#x))" in grid)
+    page = docs.files["1r5.md"]
+    assert _table_rows(page, 1)["CR"][-1] == "1 of 3 (up to 2)"
+    assert "**CR**: in 1 of 3 seeds" in page and "Cause: **not documented**." in page
+    index = docs.files["README.md"]
+    assert "2 cells have a seed in which some vertex got no visit" in index
+    assert "(1 without a documented cause)" in index
+
+
+@pytest.mark.parametrize("text,msg", [
+    ("alg: DTAG\n", "expected a list of entries"),
+    ("- alg: DTAG\n  maps: all\n  robots: all\n", "entry 1: missing key(s) cause"),
+    ("- alg: DTAG\n  maps: all\n  robots: [0]\n  cause: x\n", "robots must be"),
+    ("- alg: DTAG\n  maps: grid\n  robots: all\n  cause: x\n", "maps must be"),
+    ("- alg: DTAG\n  maps: all\n  robots: all\n  cause: x\n  why: y\n", "unknown key(s) why"),
+    ("- [\n", "bad YAML"),
+])
+def test_bad_causes_file_one_line_exit_2_nothing_written(tmp_path, text, msg):
+    camp = _write(tmp_path, _starving_runs())
+    causes = tmp_path / "causes.yaml"
+    causes.write_text(text)
+    out = tmp_path / "ref"
+    r = subprocess.run([sys.executable, SCRIPT, camp, "--out", str(out), "--causes",
+                        str(causes)], capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and msg in r.stderr and str(causes) in r.stderr
+    assert not out.exists()
+
+
+def test_shipped_causes_file_loads():
+    assert rd.starvation.load_causes(os.path.join(ROOT, "campaigns", "reference_causes.yaml"))

@@ -8,6 +8,8 @@ of :mod:`patrolling_sim.planning.references` (best closed tour, cyclic ``L/(k v)
 partition), and one figure (idleness vs team size per algorithm, the references as lines).
 Runs not done yet are counted (the pages say PARTIAL); runs that ended otherwise (CYCLES,
 FAIL, CRASHED, ERROR ...) are excluded from the means and counted per cell, never mixed in.
+Cells where some vertex was never visited in some seed are flagged, with their cause from a
+causes file (:mod:`patrolling_sim.report.starvation`).
 The metric definitions are those of ``docs/metrics.md``.
 """
 import datetime
@@ -27,6 +29,7 @@ from patrolling_sim.common.cli import run_main
 from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.model.graph import load_graph
 from patrolling_sim.planning.references import references
+from patrolling_sim.report import starvation
 
 #: (runs.csv column, heading, decimals): the columns of every table
 METRICS = (("idl_avg", "avg idleness (original) [s]", 1),
@@ -180,6 +183,10 @@ def _cell_stats(df, seeds):
                "excluded": int(((g["status"] != USED_STATUS) & (g["status"] != NOT_RUN)).sum())}
         # a run without any visit has no idleness: averaged over the runs that have one
         row["novisit"] = int(ok["idl_avg"].isna().sum()) if "idl_avg" in ok else 0
+        nv = ok["never_visited"].fillna(0) if "never_visited" in ok else pd.Series(dtype=float)
+        row["starved"] = int((nv > 0).sum())
+        row["starved_most"] = int(nv.max()) if len(nv) else 0
+        row["duration"] = float(g["duration"].iloc[0]) if "duration" in g else float("nan")
         for c, _, _ in METRICS:
             v = ok[c].dropna() if c in ok else pd.Series(dtype=float)
             row[c + "_mean"] = float(v.mean()) if len(v) else float("nan")
@@ -188,7 +195,7 @@ def _cell_stats(df, seeds):
     return pd.DataFrame(rows)
 
 
-def _map_page(map_name, stats, refs, seeds, header):
+def _map_page(map_name, stats, refs, seeds, header, causes):
     lines = [f"# Reference tables: {map_name}", ""] + header + [
         f"Mean ± SD over the seeds of the runs that ended with {USED_STATUS} (n of {seeds} "
         "seeds; **n\\*** marks a cell with fewer seeds than the campaign's; *excl.* counts runs "
@@ -199,23 +206,39 @@ def _map_page(map_name, stats, refs, seeds, header):
         "the best closed tour (so it applies to the average, worst and max idleness; a "
         "reference, not a bound: the original's average counts every visit, a route's repeated "
         "passes included), the partition reference the worst idleness of one robot per part of "
-        "a balanced partition.", "",
+        "a balanced partition. *never visited*: in how many seeds some vertex got no visit "
+        "in the whole run (and the most such vertices in one run); such a cell's worst "
+        "idleness is marked ≥ (a vertex never visited counts the run's length: a lower "
+        "bound), and the note under the table gives the cause.", "",
         f"![{map_name}]({map_name}.png)", ""]
     for n in sorted(refs):
         r = refs[n]
         s = stats[stats["robots"] == n]
         lines += [f"## {n} robot{'s' if n > 1 else ''}", "",
-                  "| algorithm | n | excl. | " + " | ".join(h for _, h, _ in METRICS) + " |",
-                  "|---|---|---|" + "---|" * len(METRICS)]
+                  "| algorithm | n | excl. | " + " | ".join(h for _, h, _ in METRICS)
+                  + " | never visited |",
+                  "|---|---|---|" + "---|" * (len(METRICS) + 1)]
+        notes = []
         for _, row in s.iterrows():
             mark = "\\*" if row["n"] < seeds else ""
             if row["novisit"]:
                 mark += f" ({row['novisit']} without a visit)"
+            flag = starvation.flag_text(row["starved"], row["n"], row["starved_most"])
+            # a never-visited vertex makes the worst idleness a lower bound (the run's length)
             lines.append(f"| {row['alg']} | {row['n']}{mark} | {row['excluded']} | " + " | ".join(
-                _fmt(row[c + "_mean"], row[c + "_sd"], d) for c, _, d in METRICS) + " |")
+                ("≥ " if flag and c == "worst_idleness" else "")
+                + _fmt(row[c + "_mean"], row[c + "_sd"], d) for c, _, d in METRICS)
+                + f" | {flag} |")
+            if flag:
+                notes.append(starvation.note_line(
+                    row["alg"], row["starved"], row["n"], row["duration"],
+                    starvation.cause_of(causes, row["alg"], map_name, n)))
         cy, pa = f"{r.cyclic_idleness:.1f}", f"{r.partition_idleness:.1f}"
-        lines += [f"| *cyclic reference L/(k v)* | | | {cy} | | {cy} | {cy} | |",
-                  f"| *partition reference* | | | | | {pa} | {pa} | |", "",
+        lines += [f"| *cyclic reference L/(k v)* | | | {cy} | | {cy} | {cy} | | |",
+                  f"| *partition reference* | | | | | {pa} | {pa} | | |", ""]
+        if notes:
+            lines += ["Never-visited vertices:", ""] + notes + [""]
+        lines += [
                   f"Best closed tour L = {r.tour_length:.1f} m "
                   f"({'exact' if r.tour_exact else 'heuristic'}); cyclic L/(k v) = "
                   f"{r.cyclic_idleness:.1f} s; partition (slowest part's tour / v, part sizes "
@@ -234,9 +257,17 @@ def _provenance(campaign_dir):
 
 
 def build_reference_docs(campaign_dir: str, command: str,
-                         now: Optional[datetime.datetime] = None) -> ReferenceDocs:
+                         now: Optional[datetime.datetime] = None,
+                         causes_file: Optional[str] = None) -> ReferenceDocs:
     """The pages of ``campaign_dir`` (nothing written). ``command``: the command line that
-    generated them, written at the top of the index."""
+    generated them, written at the top of the index. ``causes_file``: why some cells have a
+    never-visited vertex (:mod:`patrolling_sim.report.starvation`); without it every such
+    cell says "cause not documented".
+
+    Raises:
+        PatrolInputError: one line, for a bad campaign folder or causes file.
+    """
+    causes = starvation.load_causes(causes_file)
     df = load_runs(campaign_dir)
     prov = _provenance(campaign_dir)
     now = now or datetime.datetime.now(datetime.timezone.utc)
@@ -277,10 +308,32 @@ def build_reference_docs(campaign_dir: str, command: str,
         index.append(f"| [{m}]({m}.md) | {', '.join(map(str, sizes))} | "
                      f"{sm['alg'].nunique()} | {int(sm['n'].sum())} | {tot} |")
         refs = _map_references(m, sizes, speed)
-        docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header)
+        docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header, causes)
         docs.files[f"{m}.png"] = _figure(m, sm, refs, algs)
+    index += _starved_index(stats, causes)
     docs.files["README.md"] = "\n".join(index) + "\n"
     return docs
+
+
+def _starved_index(stats, causes):
+    """The index's list of cells with a never-visited vertex (empty when there is none)."""
+    flagged = stats[stats["starved"] > 0].sort_values(["map", "alg", "robots"])
+    if flagged.empty:
+        return []
+    rows, undocumented = [], 0
+    for _, r in flagged.iterrows():
+        c = starvation.cause_of(causes, r["alg"], r["map"], int(r["robots"]))
+        undocumented += c is None
+        why = "**not documented**" if c is None else (
+            f"[documented](../{c.link})" if c.link else "documented (on the map's page)")
+        rows.append(f"| [{r['map']}]({r['map']}.md) | {r['robots']} | {r['alg']} | "
+                    f"{r['starved']} of {r['n']} | {r['starved_most']} | {why} |")
+    return ["", "## Cells with a never-visited vertex", "",
+            f"{len(flagged)} cells have a seed in which some vertex got no visit in the whole "
+            f"run ({undocumented} without a documented cause). Their worst idleness is the "
+            "run's length; each map's page says why under the table.", "",
+            "| map | robots | algorithm | seeds | most vertices | cause |",
+            "|---|---|---|---|---|---|"] + rows
 
 
 def write_docs(docs: ReferenceDocs, out: str) -> List[str]:
@@ -306,9 +359,12 @@ def main(argv=None):
         ap.add_argument("campaign_dir", help="campaign folder (holds runs.csv)")
         ap.add_argument("--out", default=os.path.join("docs", "reference"),
                         help="output folder (default: docs/reference)")
+        ap.add_argument("--causes", default=None, metavar="FILE",
+                        help="YAML file: why cells have a never-visited vertex (the shipped "
+                        "tables use campaigns/reference_causes.yaml; see docs/campaigns.md)")
         a = ap.parse_args(args)
         command = shlex.join(["scripts/reference_docs.py"] + list(args))
-        docs = build_reference_docs(a.campaign_dir, command)
+        docs = build_reference_docs(a.campaign_dir, command, causes_file=a.causes)
         write_docs(docs, a.out)
         print(f"reference_docs.py: {len(docs.files)} files in {a.out} ({docs.done} of "
               f"{docs.total} runs done{', PARTIAL' if docs.partial else ''})")
