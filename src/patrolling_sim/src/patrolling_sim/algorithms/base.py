@@ -39,6 +39,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 from patrolling_sim.model.graph import PatrolGraph
 
 from patrolling_sim.common.protocol import MSG_ROBOT_STATUS
+from patrolling_sim.algorithms import wallclock
 #: ``[i, 13, 0]`` robot i failed, ``[i, 13, 1]`` it is back (docs/scenarios.md)
 MSG_FAILURE = MSG_ROBOT_STATUS
 
@@ -107,6 +108,10 @@ class PatrolStrategy:
         self.id = ctx.robot_id
         self.rng = ctx.rng
         self.driver = ctx.driver
+        #: the draws the original makes right after ``srand(time(NULL))`` (RAND's neighbour,
+        #: the ties of CR, HCR, HPCC, GBS and SEBS): ``rng``, or with the ``original_draws_*``
+        #: params the original's wall-clock draws, emulated (:mod:`.wallclock`)
+        self.tie_rng = wallclock.from_params(ctx.params, ctx.driver) or ctx.rng
         n = ctx.graph.n
         self.current = None           # vertex the robot stands on / last reached
         self.next = None              # vertex it is heading to

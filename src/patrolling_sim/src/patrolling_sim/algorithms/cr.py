@@ -9,4 +9,4 @@ class ConscientiousReactive(PatrolStrategy):
 
     def choose_next(self, now):
         nbrs = self.graph.neighbor_ids(self.current)
-        return argmax_random(nbrs, lambda w: self.idleness[w], self.rng)
+        return argmax_random(nbrs, lambda w: self.idleness[w], self.tie_rng)

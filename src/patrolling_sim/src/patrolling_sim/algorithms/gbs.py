@@ -54,7 +54,7 @@ class GreedyBayesian(PatrolStrategy):
     def choose_next(self, now):
         u = self.current
         return argmax_random(self.graph.neighbor_ids(u), lambda w: self.probability(u, w),
-                             self.rng)
+                             self.tie_rng)
 
     def send_results(self, now):
         self.send(MSG_GBS_REACHED, self.current)

@@ -23,4 +23,4 @@ class HeuristicConscientiousReactive(PatrolStrategy):
             if imax > 0:
                 s += self.idleness[w] / imax
             return s
-        return argmax_random(nbrs, score, self.rng)
+        return argmax_random(nbrs, score, self.tie_rng)

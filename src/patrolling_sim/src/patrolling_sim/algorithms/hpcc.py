@@ -49,7 +49,7 @@ class HeuristicPathfinderConscientiousCognitive(PatrolStrategy):
         score = (dmax - dv) / dmax if dmax > 0 else np.zeros(len(cands))
         score = score + (iv / imax if imax > 0 else 0.0)
         ties = cands[score >= score.max() - 1e-9].tolist()     # as argmax_random
-        goal = ties[0] if len(ties) == 1 else self.rng.choice(ties)
+        goal = ties[0] if len(ties) == 1 else self.tie_rng.choice(ties)
         return self._path(u, goal, imax)[1:]
 
     def _arc(self, i, j, imax):

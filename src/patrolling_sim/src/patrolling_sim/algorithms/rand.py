@@ -7,4 +7,4 @@ class RandomStrategy(PatrolStrategy):
     name = "RAND"
 
     def choose_next(self, now):
-        return self.rng.choice(self.graph.neighbor_ids(self.current))
+        return self.tie_rng.choice(self.graph.neighbor_ids(self.current))

@@ -35,7 +35,7 @@ class StateExchangeBayesian(PatrolStrategy):
     def choose_next(self, now):
         u = self.current
         return argmax_random(self.graph.neighbor_ids(u), lambda w: self.probability(u, w),
-                             self.rng)
+                             self.tie_rng)
 
     def send_results(self, now):
         self.send(MSG_SEBS_REACHED, self.current, self.next)
