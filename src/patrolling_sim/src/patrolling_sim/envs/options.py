@@ -9,7 +9,7 @@ from patrolling_sim.envs.rewards import REWARDS
 from patrolling_sim.graphsim.config import TRAVEL_MODES
 
 ACTIONS = ("neighbour", "goal")
-OBSERVATIONS = ("flat", "graph")
+OBSERVATIONS = ("flat", "graph", "slots")
 
 
 @dataclass
@@ -50,6 +50,8 @@ class EnvOptions:
         one_of("observation", self.observation, OBSERVATIONS)
         one_of("reward", self.reward, REWARDS)
         one_of("travel", self.travel, TRAVEL_MODES)
+        if self.observation == "slots" and self.action != "neighbour":
+            raise PatrolInputError("argument observation: 'slots' needs action='neighbour'")
         one_of("render_mode", self.render_mode, (None, "rgb_array"))
         if not isinstance(self.robots, int) or self.robots < 1:
             raise PatrolInputError(f"argument robots: must be an integer >= 1, got "

@@ -22,7 +22,6 @@ from pettingzoo import ParallelEnv
 
 from patrolling_sim.common import paths
 from patrolling_sim.common.errors import PatrolInputError
-from patrolling_sim.envs import observe
 from patrolling_sim.envs.graphs import random_patrol_graph, write_map_bundle
 from patrolling_sim.envs.options import EnvOptions
 from patrolling_sim.envs.render import draw_frame
@@ -31,6 +30,8 @@ from patrolling_sim.envs.strategy import BOARD_PARAM, DecisionBoard, EnvStrategy
 from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.graphsim.simulator import GraphSimulator
 from patrolling_sim.graphsim.starts import start_vertices_of
+from patrolling_sim.learned import observe
+from patrolling_sim.learned.slots import K as SLOT_K, SlotTables, slot_features
 from patrolling_sim.model.graph import PatrolGraph
 
 
@@ -80,6 +81,8 @@ class PatrolParallelEnv(ParallelEnv):
         if o.observation == "flat":
             size = observe.flat_size(o.robots, D, V, o.action == "goal")
             obs = [spaces.Box(-B, B, (size,), np.float32) for _ in range(o.robots)]
+        elif o.observation == "slots":
+            obs = [spaces.Box(-B, B, (D, SLOT_K), np.float32) for _ in range(o.robots)]
         else:
             obs = [spaces.Graph(spaces.Box(-B, B, (observe.NODE_FEATURES,), np.float32),
                                 spaces.Box(0.0, B, (1,), np.float32))
@@ -117,6 +120,13 @@ class PatrolParallelEnv(ParallelEnv):
         self._graphs = {path: (pg, tab)}
         return pg, tab
 
+    def _slot_tables(self, tab):
+        """The slot observation's tables of ``tab`` (kept with the graph's tables)."""
+        st = getattr(tab, "slot_tables", None)
+        if st is None:
+            st = tab.slot_tables = SlotTables(tab, self.opt.speed)
+        return st
+
     def _map_for(self, seed):
         if self.spec_random is None:
             return self.opt.map
@@ -138,7 +148,10 @@ class PatrolParallelEnv(ParallelEnv):
         starts = start_vertices_of(cfg0.validate(), pg)
         self.board = DecisionBoard(self.opt.robots, pg.n, starts)
         self.flat = None
-        if self.opt.observation == "flat":
+        self.slot_tables = None
+        if self.opt.observation == "slots":
+            self.slot_tables = self._slot_tables(self.tab)
+        elif self.opt.observation == "flat":
             self.flat = self.board.listener = observe.FlatObservations(
                 self.tab, self.board, self.opt.action == "goal")
         self.sim = GraphSimulator(self._config(map_path, self.seed_used, self.board),
@@ -224,6 +237,12 @@ class PatrolParallelEnv(ParallelEnv):
             m = self.flat.observe(t, self._ready_vector())
             ids = self.agent_ids
             return {a: m[ids[a]] for a in self.agents}
+        if self.slot_tables is not None:
+            ids = [self.agent_ids[a] for a in self.agents]
+            if not ids:
+                return {}
+            feats, _ = slot_features(self.slot_tables, b, ids, t)
+            return dict(zip(self.agents, feats))
         out = {}
         for a in self.agents:
             nodes, edges, links = observe.graph_observation(self.tab, b, t, self.agent_ids[a])

@@ -1,6 +1,6 @@
 """Rewards of the learning environment, selected by name (docs/learning.md, "Rewards").
 
-``T`` is the environment's time scale (:class:`~patrolling_sim.envs.observe.GraphTables`),
+``T`` is the environment's time scale (:class:`~patrolling_sim.learned.observe.GraphTables`),
 ``I(t)`` the true idleness of the vertices at time t (the monitor's: time since the last
 visit report), ``t0`` / ``t1`` the simulated times at the end of the previous step and of
 this one (``dt = t1 - t0``):

@@ -1,6 +1,7 @@
 """Observations and global state of the learning environment (docs/learning.md, "Spaces"),
 built with a few numpy operations for all robots at once from the beliefs of
-:class:`~patrolling_sim.envs.strategy.DecisionBoard`.
+:class:`~patrolling_sim.learned.beliefs.TeamBeliefs`; the slot observation, which the
+``POLICY`` strategy also uses, is in :mod:`patrolling_sim.learned.slots`.
 
 Scales: lengths are divided by ``S`` (the larger side of the graph's bounding box, m), times
 by ``T`` (total undirected edge length / (speed x robots): the idleness a team that shared
@@ -32,7 +33,7 @@ class GraphTables:
     """Per-graph arrays the observations read (built once per graph)."""
 
     def __init__(self, pgraph, robots: int, speed: float, max_degree: int):
-        g = pgraph
+        g = self.pgraph = pgraph
         self.n = g.n
         self.pos = np.asarray(g.pos, dtype=float)
         ext = self.pos.max(axis=0) - self.pos.min(axis=0) if g.n > 1 else np.ones(2)
@@ -81,6 +82,15 @@ class GraphTables:
                            for k, w in enumerate(self.nbr[v, :self.degree[v]])}
                           for v in range(g.n)]
         self.offset_list = [[tuple(p) for p in rows] for rows in self.offset.tolist()]
+        self._dist_m = None
+        self.mean_edge = float(self.nbr_len[self.valid].mean()) if self.valid.any() else 1.0
+
+    @property
+    def dist_m(self):
+        """(V, V) shortest-path lengths in metres (inf if unreachable; computed on first use)."""
+        if self._dist_m is None:
+            self._dist_m = np.asarray(self.pgraph.dist, dtype=float) * self.pgraph.resolution
+        return self._dist_m
 
     def rows(self, N):
         """(N, 1) row indices."""
