@@ -2,13 +2,28 @@
 """Run the ORIGINAL patrolling_sim's C++ agents in this project's abstract world, with this
 project's monitor (docs/fidelity.md, "The original's own agents in the abstract world").
 
-The reference runs in tests/unit/data/original_runs/ are two per algorithm, too few for a
-figure that spreads as widely from run to run as DTAP's maximum idleness. This script makes
-more runs of the original's agents in the same world as our ROS-mode runs (grid, 4 robots at
-vertices 0, 13, 20, 11, 600 sim s after GO, docs/abstract_world.md): the runner writes the
-experiment's launch file (``--dry-run``), the script drops our agents from it, starts the world
-and the monitor with ``roslaunch`` on a master of its own, and starts the original's agent
-executables beside them, each in its own session. It stops only what it started.
+The reference runs in tests/unit/data/original_runs/ are two per algorithm on grid only, too
+few for a figure that spreads as widely from run to run as DTAP's maximum idleness. This script
+makes more runs of the original's agents in the same world as our ROS-mode runs (by default
+grid, 4 robots at vertices 0, 13, 20, 11, 600 sim s after GO; any shipped map and team size
+with ``--map``/``--robots``/``--duration``, the robots at the project's default start
+positions for that map and team, as graph mode and the reference campaign;
+docs/abstract_world.md): the runner writes the experiment's launch file (``--dry-run``), the
+script drops our agents from it, starts the world and the monitor with ``roslaunch`` on a
+master of its own, and starts the original's agent executables beside them, each in its own
+session, with the arguments the original's launcher gives them (MSP its route file
+``MSP/<map>/<map>_<N>_<id>``, GBS, SEBS and CBLS the team size). It stops only what it
+started.
+
+The agents read their graph from their own package. Where the original's graph file differs
+from this project's (move_base_arena: this project moved vertex 0 and fixed one edge cost,
+maps/README.md), they would patrol another graph than the world and monitor; so the agents
+run from an overlay of their package (symbolic links to it, made under the output folder and
+first on ROS_PACKAGE_PATH) whose graph for the map is this project's. ``--their-graph``
+turns that off. No file of the original is changed.
+
+``--summary FILE`` appends one compact row per run to a CSV (tests/unit/original_matrix.py,
+``COLUMNS``): the figures, the visits per vertex, the pace and the load when the run began.
 
 The original's agents are not part of this repository. Build them yourself from the
 original's public source (version 2.2.4) in a catkin workspace of their own, package name
@@ -20,10 +35,12 @@ With ``--ours shared|separate`` every run of the original is followed by a run o
 (seed = run index), so that both see the same machine load.
 
 Usage:
-    bench/original_agents.py --orig-ws PATH --alg DTAP [--runs 20] [--first 0] [--speedup 30]
-                             [--ours separate] [--out DIR] [--json FILE]
+    bench/original_agents.py --orig-ws PATH --alg DTAP [--map grid] [--robots 4]
+                             [--duration 600] [--runs 20] [--first 0] [--speedup 30]
+                             [--ours separate] [--out DIR] [--json FILE] [--summary CSV]
 """
 import argparse
+import filecmp
 import glob
 import json
 import os
@@ -37,8 +54,12 @@ import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "tests", "ros"))
+sys.path.insert(0, os.path.join(ROOT, "tests", "unit"))
+sys.path.insert(0, os.path.join(ROOT, "src", "spqrel_nav_lite", "src"))
 from abstract_runs import (DURATION, MAP, ROBOTS, START, AbstractRun,  # noqa: E402
                            read_results, run_abstract)
+import original_matrix  # noqa: E402
+from patrolling_sim.common import paths  # noqa: E402
 from patrolling_sim.runner.proctree import ProcessTree  # noqa: E402
 from patrolling_sim.runner.rosenv import experiment_env, free_port, sourced_env  # noqa: E402
 
@@ -47,17 +68,21 @@ BINARIES = {"RAND": "Random", "CR": "Conscientious_Reactive",
             "HCR": "Heuristic_Conscientious_Reactive", "HPCC": "Conscientious_Cognitive",
             "CGG": "Cyclic", "MSP": "MSP", "GBS": "GBS", "SEBS": "SEBS", "CBLS": "CBLS",
             "DTAG": "DTAGreedy", "DTAP": "DTASSIPart", "DTASSI": "DTASSI"}
-#: wall s to wait for a run (x30: about 30 s) before it is stopped and reported
+#: the agents to which the original's launcher passes the team size
+TEAM_SIZE_ARG = ("GBS", "SEBS", "CBLS")
+#: wall s to wait for a run (x30, 600 s: about 30 s) before it is stopped and reported
 RUN_LIMIT = 900.0
 
 
-def world_launch(alg, seed, speedup, results_dir, env):
+def world_launch(alg, seed, speedup, results_dir, env, exp):
     """Write the experiment's launch file with the runner (``--dry-run``) and a copy without
-    our agents; return the copy's path."""
-    cmd = ["/usr/bin/python3", START, "--map", MAP, "--robots", str(ROBOTS), "--alg", alg,
-           "--nav", "abstract", "--timeout", f"{DURATION:g}", "--speedup", f"{speedup:g}",
+    our agents; return the copy's path. ``exp``: (map, robots, duration, dead robot
+    timeout)."""
+    map_name, robots, duration, dead = exp
+    cmd = ["/usr/bin/python3", START, "--map", map_name, "--robots", str(robots), "--alg", alg,
+           "--nav", "abstract", "--timeout", f"{duration:g}", "--speedup", f"{speedup:g}",
            "--processes", "separate", "--seed", str(seed), "--results-dir", results_dir,
-           "--dry-run"]
+           "--dead-robot-timeout", f"{dead:g}", "--dry-run"]
     r = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                        text=True)
     m = re.search(r"launch file: (\S+)", r.stdout)
@@ -67,12 +92,51 @@ def world_launch(alg, seed, speedup, results_dir, env):
         xml = f.read()
     xml, n = re.subn(r'  <node pkg="patrolling_sim" type="patrol_agent".*?</node>\n', "", xml,
                      flags=re.S)
-    if n != ROBOTS:
-        raise RuntimeError(f"{m.group(1)}: expected {ROBOTS} agent nodes, found {n}")
+    if n != robots:
+        raise RuntimeError(f"{m.group(1)}: expected {robots} agent nodes, found {n}")
     path = m.group(1).replace("_experiment.launch", "_world_monitor.launch")
     with open(path, "w", encoding="utf-8") as f:
         f.write(xml)
     return path
+
+
+def package_overlay(ws, map_name, out):
+    """The folder holding the agents' package: the original's, or, when its graph of
+    ``map_name`` differs from ours, an overlay under ``out`` (links to every entry of the
+    original's package, and a ``maps/<map>`` whose graph file is ours). Returns (the folder
+    to put first on ROS_PACKAGE_PATH or None, the package path)."""
+    pkg = os.path.join(ws, "src", "patrolling_sim")
+    theirs = os.path.join(pkg, "maps", map_name, f"{map_name}.graph")
+    ours = paths.map_files(map_name)[1]
+    if os.path.isfile(theirs) and filecmp.cmp(theirs, ours, shallow=False):
+        return None, pkg
+    root = os.path.join(out, "package_overlay")
+    ovl = os.path.join(root, "patrolling_sim")
+    shutil.rmtree(root, ignore_errors=True)
+    os.makedirs(os.path.join(ovl, "maps", map_name))
+    for e in os.listdir(pkg):
+        if e != "maps":
+            os.symlink(os.path.join(pkg, e), os.path.join(ovl, e))
+    for e in os.listdir(os.path.join(pkg, "maps")):
+        if e != map_name:
+            os.symlink(os.path.join(pkg, "maps", e), os.path.join(ovl, "maps", e))
+    src = os.path.join(pkg, "maps", map_name)
+    for e in os.listdir(src) if os.path.isdir(src) else []:
+        if e != f"{map_name}.graph":
+            os.symlink(os.path.join(src, e), os.path.join(ovl, "maps", map_name, e))
+    shutil.copyfile(ours, os.path.join(ovl, "maps", map_name, f"{map_name}.graph"))
+    print(f"  the original's {map_name} graph differs from ours: its agents read ours "
+          f"through {ovl}", flush=True)
+    return root, ovl
+
+
+def agent_args(alg, map_name, robot, robots):
+    """The arguments the original's launcher gives agent ``robot`` (after ``__name``)."""
+    if alg == "MSP":
+        return [map_name, str(robot), f"MSP/{map_name}/{map_name}_{robots}_{robot}"]
+    if alg in TEAM_SIZE_ARG:
+        return [map_name, str(robot), str(robots)]
+    return [map_name, str(robot)]
 
 
 def stop(proc, grace=5.0):
@@ -82,40 +146,43 @@ def stop(proc, grace=5.0):
     proc.wait()
 
 
-def run_original(ws, orig_env, binary, alg, seed, speedup, results_dir):
-    """One run of the original's agents (``orig_env``: their workspace's environment);
+def wait_sim_time(world, env, log):
+    """Wait until the world's launch has set /use_sim_time (the agents read it at start)."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 60:
+        r = subprocess.run(["rosparam", "get", "/use_sim_time"], env=env,
+                           capture_output=True, text=True)
+        if r.returncode == 0 and r.stdout.strip() == "true":
+            return
+        if world.poll() is not None:
+            raise RuntimeError(f"roslaunch exited {world.returncode}, see {log}")
+        time.sleep(0.3)
+    raise RuntimeError(f"/use_sim_time not set after 60 s, see {log}")
+
+
+def run_original(orig_env, pkg, binary, alg, seed, speedup, results_dir, exp):
+    """One run of the original's agents (``orig_env``: their workspace's environment,
+    ``pkg``: their package folder, ``exp``: (map, robots, duration, dead robot timeout));
     returns an :class:`AbstractRun` with its figures."""
+    map_name, robots = exp[:2]
     port = free_port()
     ours = experiment_env(port, os.path.join(results_dir, "ros_home"))
     orig = dict(orig_env, **{k: ours[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_LOG_DIR",
                                                   "ROS_HOME")})
-    launch = world_launch(alg, seed, speedup, results_dir, ours)
+    launch = world_launch(alg, seed, speedup, results_dir, ours, exp)
     log = open(os.path.join(results_dir, "roslaunch.log"), "w")
     world = subprocess.Popen(["roslaunch", "-p", str(port), launch], env=ours, stdout=log,
                              stderr=subprocess.STDOUT, start_new_session=True)
     agents, logs = [], [log]
     try:
-        # the agents read /use_sim_time when they start: wait until the launch has set it
-        t0 = time.monotonic()
-        while time.monotonic() - t0 < 60:
-            r = subprocess.run(["rosparam", "get", "/use_sim_time"], env=ours,
-                               capture_output=True, text=True)
-            if r.returncode == 0 and r.stdout.strip() == "true":
-                break
-            if world.poll() is not None:
-                raise RuntimeError(f"roslaunch exited {world.returncode}, see {log.name}")
-            time.sleep(0.3)
-        else:
-            raise RuntimeError(f"/use_sim_time not set after 60 s, see {log.name}")
-        pkg = os.path.join(ws, "src", "patrolling_sim")
-        for i in range(ROBOTS):
+        wait_sim_time(world, ours, log.name)
+        for i in range(robots):
             out = open(os.path.join(results_dir, f"agent_{i}.log"), "w")
             logs.append(out)
-            # the original's agents read argv as (map, id, team size) and open their
-            # parameter files relative to the working directory: its package folder
+            # the original's agents change to their package folder and open their graph,
+            # parameter and route files relative to it
             agents.append(subprocess.Popen(
-                [os.path.join(ws, "devel", "lib", "patrolling_sim", binary),
-                 f"__name:=patrol_robot{i}", MAP, str(i), str(ROBOTS)],
+                [binary, f"__name:=patrol_robot{i}", *agent_args(alg, map_name, i, robots)],
                 cwd=pkg, env=orig, stdout=out, stderr=subprocess.STDOUT,
                 start_new_session=True))
         # the monitor is required: its end ends the launch. The agents are stopped as soon as
@@ -154,59 +221,104 @@ def summary(label, runs):
     return f"{label}, {len(runs)} runs: " + "; ".join(parts)
 
 
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--orig-ws", required=True,
                     help="catkin workspace with the original's agents built")
     ap.add_argument("--alg", required=True, help=f"one of {', '.join(BINARIES)}")
+    ap.add_argument("--map", default=MAP, help=f"a shipped map (default {MAP})")
+    ap.add_argument("--robots", type=int, default=ROBOTS, help=f"team size (default {ROBOTS})")
+    ap.add_argument("--duration", type=float, default=DURATION,
+                    help=f"sim s after GO (default {DURATION:g})")
+    ap.add_argument("--dead-robot-timeout", type=float, default=0.0,
+                    help="sim s without a visit report before the monitor ends the run as "
+                         "FAIL (default 0: never, so a robot that stops patrolling shows in "
+                         "the visits per vertex instead of ending the run; 300 is the "
+                         "original monitor's rule)")
     ap.add_argument("--runs", type=int, default=20)
     ap.add_argument("--first", type=int, default=0,
                     help="index of the first run (our seeds are the run indices)")
     ap.add_argument("--speedup", type=float, default=30.0)
     ap.add_argument("--ours", choices=("shared", "separate"),
                     help="after each run of the original, one of our agents (seed = index)")
+    ap.add_argument("--their-graph", action="store_true",
+                    help="the agents read the original's own graph file even where it differs "
+                         "from ours")
     ap.add_argument("--out", help="keep every run's files here (default: a temporary folder)")
     ap.add_argument("--json", help="write the figures of every run here")
+    ap.add_argument("--summary", help="append one compact row per run to this CSV")
     a = ap.parse_args()
     if a.alg not in BINARIES:
         ap.error(f"argument --alg: unknown algorithm {a.alg!r} (one of {', '.join(BINARIES)})")
-    if a.runs < 1:
-        ap.error(f"argument --runs: must be >= 1, got {a.runs}")
-    if a.first < 0:
-        ap.error(f"argument --first: must be >= 0, got {a.first}")
-    if a.speedup <= 0:
-        ap.error(f"argument --speedup: must be > 0, got {a.speedup:g}")
+    for name, low in (("runs", 1), ("first", 0), ("robots", 1)):
+        if getattr(a, name) < low:
+            ap.error(f"argument --{name}: must be >= {low}, got {getattr(a, name)}")
+    for name in ("speedup", "duration"):
+        if getattr(a, name) <= 0:
+            ap.error(f"argument --{name}: must be > 0, got {getattr(a, name):g}")
     ws = os.path.abspath(a.orig_ws)
-    binary = os.path.join(ws, "devel", "lib", "patrolling_sim", BINARIES[a.alg])
     if not os.path.isfile(os.path.join(ws, "devel", "setup.bash")):
         ap.error(f"argument --orig-ws: {ws}: no devel/setup.bash (not a built workspace)")
+    binary = os.path.join(ws, "devel", "lib", "patrolling_sim", BINARIES[a.alg])
     if not os.access(binary, os.X_OK):
         ap.error(f"argument --orig-ws: {binary}: the original's {a.alg} agent is not built")
+    if a.alg == "MSP":
+        for i in range(a.robots):
+            route = agent_args("MSP", a.map, i, a.robots)[2]
+            f = os.path.join(ws, "src", "patrolling_sim", *route.split("/"))
+            if not os.path.isfile(f):
+                ap.error(f"argument --map/--robots: the original ships no MSP route file {f}")
+    return a, ws, binary
+
+
+def one_run(a, who, k, d, ctx):
+    """Run ``who`` (original / ours) with index ``k`` in folder ``d``; print its figures and
+    append its summary row; returns the run (an AbstractRun)."""
+    exp = (a.map, a.robots, a.duration, a.dead_robot_timeout)
+    load1 = os.getloadavg()[0]
+    if who == "original":
+        r = run_original(ctx["env"], ctx["pkg"], ctx["binary"], a.alg, k, a.speedup, d, exp)
+    else:
+        r = run_abstract(a.alg, k, d, processes=a.ours, speedup=a.speedup, duration=a.duration,
+                         map_name=a.map, robots=a.robots,
+                         extra=("--dead-robot-timeout", f"{a.dead_robot_timeout:g}"))
+    ok = r.complete(a.duration)
+    pace = (f", pace x{r.info['sim_duration'] / r.info['real_duration']:.1f}"
+            if r.info and r.info["real_duration"] > 0 else "")
+    print(f"{who} run {k} (load {load1:.2f}{pace}): "
+          + (f"avg {r.avg:.2f} max {r.max:.1f} visits {r.visits}" if ok else
+             f"incomplete (exit {r.exit_code}, info {r.info}), left out"), flush=True)
+    if not ok and r.output:
+        with open(os.path.join(d, "runner_output.txt"), "w", encoding="utf-8") as f:
+            f.write(r.output)
+    if a.summary:
+        agents = "original" if who == "original" else f"ours_{a.ours}"
+        row = original_matrix.summary_row(d, agents, a.alg, k, a.speedup, a.duration, load1)
+        if row:
+            original_matrix.append_rows(a.summary, [row])
+    return r
+
+
+def main():
+    a, ws, binary = parse_args()
     out = os.path.abspath(a.out) if a.out else tempfile.mkdtemp(prefix="original_agents_")
     os.makedirs(out, exist_ok=True)
-    print(f"{a.alg} ({BINARIES[a.alg]}), grid, {ROBOTS} robots, {DURATION:g} s after GO, "
-          f"x{a.speedup:g}, files under {out}", flush=True)
-    orig_env = sourced_env(os.path.join(ws, "devel", "setup.bash"))
+    print(f"{a.alg} ({BINARIES[a.alg]}), {a.map}, {a.robots} robots, {a.duration:g} s after "
+          f"GO, x{a.speedup:g}, files under {out}", flush=True)
+    env = sourced_env(os.path.join(ws, "devel", "setup.bash"))
+    overlay, pkg = (None, os.path.join(ws, "src", "patrolling_sim")) if a.their_graph \
+        else package_overlay(ws, a.map, out)
+    if overlay:
+        env["ROS_PACKAGE_PATH"] = overlay + os.pathsep + env.get("ROS_PACKAGE_PATH", "")
+    ctx = {"env": env, "pkg": pkg, "binary": binary}
     raw = {"original": [], "ours": []}
     for k in range(a.first, a.first + a.runs):
-        runs = [("original", lambda d: run_original(ws, orig_env, BINARIES[a.alg], a.alg, k,
-                                                    a.speedup, d))]
-        if a.ours:
-            runs.append(("ours", lambda d: run_abstract(a.alg, k, d, processes=a.ours,
-                                                        speedup=a.speedup)))
-        for who, run in runs:
+        for who in ("original", "ours") if a.ours else ("original",):
             d = os.path.join(out, f"{who}_{k:02d}")
             os.makedirs(d, exist_ok=True)
-            r = run(d)
-            ok = r.complete()
-            print(f"{who} run {k}: " + (f"avg {r.avg:.2f} max {r.max:.1f} visits {r.visits}"
-                                        if ok else f"incomplete (exit {r.exit_code}, info "
-                                                   f"{r.info}), left out"), flush=True)
-            if ok:
+            r = one_run(a, who, k, d, ctx)
+            if r.complete(a.duration):
                 raw[who].append(r.figures())
-            elif r.output:
-                with open(os.path.join(d, "runner_output.txt"), "w", encoding="utf-8") as f:
-                    f.write(r.output)
     print(summary("original's agents", raw["original"]))
     if a.ours:
         print(summary(f"our agents (--processes {a.ours})", raw["ours"]))

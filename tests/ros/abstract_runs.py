@@ -50,10 +50,11 @@ class AbstractRun:
 
 
 def run_abstract(alg, seed, results_dir, processes="shared", speedup=SPEEDUP,
-                 duration=DURATION, extra=()):
-    """One run of ``alg`` in the abstract world; returns an :class:`AbstractRun` (figures
-    None when the run wrote no info.csv)."""
-    cmd = ["/usr/bin/python3", START, "--headless", "--map", MAP, "--robots", str(ROBOTS),
+                 duration=DURATION, extra=(), map_name=MAP, robots=ROBOTS):
+    """One run of ``alg`` in the abstract world (``map_name``, ``robots`` at their default
+    start positions); returns an :class:`AbstractRun` (figures None when the run wrote no
+    info.csv)."""
+    cmd = ["/usr/bin/python3", START, "--headless", "--map", map_name, "--robots", str(robots),
            "--alg", alg, "--nav", "abstract", "--timeout", f"{duration:g}", "--speedup",
            f"{speedup:g}", "--seed", str(seed), "--processes", processes, "--results-dir",
            str(results_dir), *extra]
