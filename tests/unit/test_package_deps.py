@@ -46,6 +46,7 @@ NOT_IMPORTED = {
     "message_generation": "builds patrol_stage2d/SetPose.srv",
     "message_runtime": "runtime of the generated SetPose service",
     "rostest": "runs the package's .test files",
+    "python3-torch": "scripts/train_policy.py trains policies (outside the package sources)",
 }
 
 

@@ -101,6 +101,15 @@ class PatrolStrategy:
     algorithm_params = ""
     #: default s without a message from a teammate before :meth:`on_teammate_silent`
     TEAMMATE_TIMEOUT = 120.0
+    #: True: runs are told apart by :attr:`algorithm_params` (e.g. a policy file's label),
+    #: so reports show ``NAME params`` (:func:`display_name`)
+    params_in_label = False
+
+    @classmethod
+    def check_params(cls, params: Dict[str, Any]) -> None:
+        """Check the algorithm's ``params`` (e.g. files it reads) before anything starts:
+        graph mode, the ROS runner and campaigns call it when they validate a run's
+        configuration. Raises PatrolInputError with one line. Default: nothing to check."""
 
     def __init__(self, ctx: StrategyContext):
         self.ctx = ctx
@@ -226,6 +235,15 @@ def register(cls):
         raise ValueError(f"{cls.__name__} has no name")
     REGISTRY[cls.name] = cls
     return cls
+
+
+def display_name(name: str, params: str) -> str:
+    """How reports name an algorithm's runs: ``name``, or ``"name params"`` for a registered
+    strategy with :attr:`PatrolStrategy.params_in_label` and non-empty ``params``."""
+    cls = REGISTRY.get(name)
+    if cls is not None and cls.params_in_label and params and str(params) != "nan":
+        return f"{name} {params}"
+    return name
 
 
 def names():

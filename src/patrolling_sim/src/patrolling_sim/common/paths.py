@@ -138,5 +138,10 @@ def dta_params_file(name):
     return os.path.join(data_root(), "params", "DTA", name + ".params")
 
 
+def policy_file(name):
+    """The shipped policy file ``policies/<name>.npz`` (docs/learning.md)."""
+    return os.path.join(data_root(), "policies", name + ".npz")
+
+
 def msp_route_file(map_name_, n_robots, robot_id):
     return os.path.join(data_root(), "MSP", map_name_, f"{map_name_}_{n_robots}_{robot_id}")

@@ -84,6 +84,35 @@ def _direction(dx, dy):
     return DIRECTIONS[(2 - k) % 8]
 
 
+def spanning_tree(n, order, max_degree):
+    """(edges, degree) of a spanning tree over ``order`` (((u, w), length) pairs, shortest
+    first): Kruskal's minimum spanning tree, skipping an edge that would give a vertex more
+    than ``max_degree`` neighbours (the tree is the minimum one whenever that respects the
+    limit); components still apart are then joined by their shortest edge, between vertices
+    under the limit when there is one."""
+    comp = list(range(n))
+
+    def find(v):
+        while comp[v] != v:
+            comp[v] = comp[comp[v]]
+            v = comp[v]
+        return v
+    edges, degree = set(), [0] * n
+    for strict in (True, False):
+        for (u, w), _ in order:
+            if find(u) == find(w) or (strict and max(degree[u], degree[w]) >= max_degree):
+                continue
+            if not strict and max(degree[u], degree[w]) >= max_degree and any(
+                    find(a) != find(b) and max(degree[a], degree[b]) < max_degree
+                    for (a, b), _ in order):
+                continue
+            comp[find(u)] = find(w)
+            edges.add((u, w))
+            degree[u] += 1
+            degree[w] += 1
+    return edges, degree
+
+
 def random_patrol_graph(seed: int, spec: RandomGraphSpec = None, name: str = "random"):
     """A connected patrol graph (networkx.MultiDiGraph in :mod:`patrolling_sim.model.graph`'s
     form) drawn from ``seed`` with ``spec`` (module docstring); the same seed and spec
@@ -97,14 +126,9 @@ def random_patrol_graph(seed: int, spec: RandomGraphSpec = None, name: str = "ra
     for u in range(spec.n):
         for w in range(u + 1, spec.n):
             length[(u, w)] = math.hypot(px[w][0] - px[u][0], px[w][1] - px[u][1])
-    full = nx.Graph()
-    full.add_weighted_edges_from((u, w, d) for (u, w), d in length.items())
-    edges = set(tuple(sorted(e)) for e in nx.minimum_spanning_tree(full).edges())
-    degree = [0] * spec.n
-    for u, w in edges:
-        degree[u] += 1
-        degree[w] += 1
-    for (u, w), d in sorted(length.items(), key=lambda kv: (kv[1], kv[0])):
+    order = sorted(length.items(), key=lambda kv: (kv[1], kv[0]))
+    edges, degree = spanning_tree(spec.n, order, spec.max_degree)
+    for (u, w), d in order:
         if (u, w) in edges or d * RESOLUTION > spec.radius:
             continue
         if degree[u] < spec.max_degree and degree[w] < spec.max_degree:

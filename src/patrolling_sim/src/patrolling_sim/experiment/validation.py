@@ -118,6 +118,15 @@ def check_map_files(map_arg, what="argument --map"):
     return yaml_path, graph_path
 
 
+def strategy_params(params, policy):
+    """The strategy's params of a run: a copy of ``params`` with ``policy`` (a policy file,
+    as an absolute path) when it is set; the same in graph mode, the runner and campaigns."""
+    out = dict(params or {})
+    if policy:
+        out["policy"] = os.path.abspath(os.path.expanduser(str(policy)))
+    return out
+
+
 def check_writable_dir(path, what="argument --results-dir"):
     """Create ``path`` if needed and check a file can be written in it."""
     try:

@@ -58,6 +58,8 @@ def build_parser():
     ap.add_argument("--attrition", default="none",
                     help="robot failures: 'ROBOT@SECONDS[+REPAIR],...' or "
                          "'random:rate=R,min_team=K[,repair=S]' (docs/scenarios.md)")
+    ap.add_argument("--policy", default="",
+                    help="policy file (.npz) of --alg POLICY (docs/learning.md)")
     ap.add_argument("--results-dir", default="results")
     ap.add_argument("--repeat", type=int, default=1,
                     help="run this many times with seeds seed, seed+1, ...")
@@ -73,7 +75,7 @@ def check_first_run(a):
                            cycles=a.cycles, seed=a.seed, speed=a.speed, gwait=a.gwait,
                            comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
                            results_dir=a.results_dir, comm=a.comm,
-                           attrition=a.attrition).validate()
+                           attrition=a.attrition, policy=a.policy).validate()
     _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos,
                                                  alg=first.alg, seed=first.seed)
     warning = validation.team_size_warning(first.robots, pgraph.n, paths.map_name(a.map))
@@ -89,7 +91,7 @@ def run_config(a, seed):
                           comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
                           results_dir=a.results_dir, goal_fail=a.goal_fail,
                           interference=a.interference == "on", travel=a.travel,
-                          comm=a.comm, attrition=a.attrition)
+                          comm=a.comm, attrition=a.attrition, policy=a.policy)
 
 
 def record_interrupt(sim, sig):

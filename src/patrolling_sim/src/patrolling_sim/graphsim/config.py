@@ -53,6 +53,12 @@ class GraphSimConfig:
     comm: str = "perfect"           # communication model (patrolling_sim.scenarios.comm, --comm)
     attrition: str = "none"         # robot failures (patrolling_sim.scenarios.attrition,
     #                                 --attrition)
+    policy: str = ""                # policy file of --alg POLICY (params["policy"]); other
+    #                                 algorithms ignore it
+
+    def strategy_params(self) -> dict:
+        """The strategy's params: ``params`` with ``policy`` (as an absolute path) if set."""
+        return validation.strategy_params(self.params, self.policy)
 
     def validate(self):
         if self.alg not in REGISTRY:
@@ -78,6 +84,7 @@ class GraphSimConfig:
             raise PatrolInputError(f"argument --travel: must be one of {', '.join(TRAVEL_MODES)}"
                                    f", got '{self.travel}'")
         # the same one-line errors as the experiment runner (patrolling_sim.experiment.validation)
+        REGISTRY[self.alg].check_params(self.strategy_params())
         validation.check_map_files(self.map)
         check_initpos(self.initpos, self.robots)      # syntax and count, without the map
         check_scenario(self.comm, self.attrition, self.robots,

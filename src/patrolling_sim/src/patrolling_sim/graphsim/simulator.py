@@ -210,7 +210,7 @@ class GraphSimulator(FeedbackTicks):
     def _make_core(self, robot):
         cfg = self.cfg
         sv = self.start_vertices[robot.id]
-        params = dict(cfg.params)
+        params = cfg.strategy_params()
         params.setdefault("start_vertices", self.start_vertices)
         robot.core = build_agent(robot, self.g, robot.id, cfg.robots, self.map_name, cfg.alg,
                                  sv, robot.xy, seed=agent_seed(cfg.seed, robot.id),

@@ -38,23 +38,32 @@ FAR = 10.0
 class SlotTables:
     """Per-graph arrays of the slot observation, from a
     :class:`~patrolling_sim.learned.observe.GraphTables` ``tab`` and the robots' ``speed``
-    (m/s): the two-hop neighbourhoods and the distances in mean edge lengths."""
+    (m/s): the features that depend on the vertex only, the two-hop neighbourhoods and the
+    distances in mean edge lengths."""
 
     def __init__(self, tab, speed: float):
         self.tab = tab
         V, D = tab.n, tab.D
         self.L = max(tab.mean_edge, 1e-9)
-        self.length = tab.nbr_len / self.L
-        self.travel = tab.nbr_len / (speed * tab.T)
         nb = tab.safe_nbr                                    # (V, D)
+        self.static = np.zeros((V, D, K))
+        self.static[:, :, 0] = tab.valid
+        self.static[:, :, 4] = tab.nbr_len / self.L
+        self.static[:, :, 5] = tab.nbr_len / (speed * tab.T)
+        self.static[:, :, 12] = tab.degree[nb] / 4.0
+        self.static[~tab.valid] = 0.0
         ahead = tab.nbr[nb]                                  # (V, D, D): w's neighbours
         self.ahead_valid = (tab.valid[nb] & (ahead != np.arange(V)[:, None, None])
                             & tab.valid[:, :, None])
-        self.ahead_idx = np.where(self.ahead_valid, ahead, 0).reshape(V, D * D)
+        self.ahead_idx = np.where(self.ahead_valid, ahead, 0)
         self.ahead_count = np.maximum(self.ahead_valid.sum(axis=2), 1)
-        self.degree = tab.degree[nb] / 4.0
         d = np.asarray(tab.dist_m, dtype=float) / self.L
-        self.dist = np.where(np.isfinite(d), d, 1e6)         # (V, V)
+        #: exp(-distance) and min(distance, FAR) between vertices, with one more row and
+        #: column (index V, i.e. -1) for an unknown teammate: 0 and FAR
+        self.near = np.zeros((V + 1, V + 1))
+        self.near[:V, :V] = np.exp(-np.where(np.isfinite(d), d, np.inf))
+        self.far = np.full((V + 1, V + 1), FAR)
+        self.far[:V, :V] = np.minimum(np.where(np.isfinite(d), d, FAR), FAR)
 
 
 def slot_features(st: SlotTables, beliefs, ids, now: float):
@@ -63,36 +72,30 @@ def slot_features(st: SlotTables, beliefs, ids, now: float):
     docstring."""
     tab = st.tab
     ids = np.asarray(ids, dtype=np.int64)
-    R, D = len(ids), tab.D
-    cur = np.asarray([beliefs.current[i] for i in ids], dtype=np.int64)
+    rows = ids[:, None]
+    cur = np.asarray(beliefs.current, dtype=np.int64)[ids]
     nbr = tab.safe_nbr[cur]                                  # (R, D)
     valid = tab.valid[cur]
-    lv = beliefs.last_visit[ids]                             # (R, V)
-    idl = np.where(valid, now - np.take_along_axis(lv, nbr, 1), 0.0)
+    out = st.static[cur]                                     # a copy (fancy indexing)
+    lv = beliefs.last_visit
+    idl = (now - lv[rows, nbr]) * valid
     top = idl.max(axis=1, keepdims=True)
-    out = np.zeros((R, D, K))
-    out[:, :, 0] = valid
     out[:, :, 1] = idl / tab.T
-    out[:, :, 2] = np.where(top > 0, idl / np.where(top > 0, top, 1.0), 1.0)
-    out[:, :, 3] = idl >= top - 1e-9
-    out[:, :, 4] = st.length[cur]
-    out[:, :, 5] = st.travel[cur]
-    mv = np.asarray([beliefs.mate_vertex[i] for i in ids], dtype=np.int64)   # (R, N)
-    mn = np.asarray([beliefs.mate_next[i] for i in ids], dtype=np.int64)
-    known = (mn >= 0) & (np.arange(mn.shape[1])[None, :] != ids[:, None])
-    mv = np.where(known, mv, -1)
-    mn = np.where(known, mn, -1)
-    out[:, :, 6] = (mn[:, None, :] == nbr[:, :, None]).sum(axis=2)
-    out[:, :, 7] = (mv[:, None, :] == nbr[:, :, None]).sum(axis=2)
-    d = st.dist[nbr[:, :, None], np.where(known, mn, 0)[:, None, :]]     # (R, D, N)
-    d = np.where(known[:, None, :], d, np.inf)
-    out[:, :, 8] = np.exp(-d).sum(axis=2)
-    out[:, :, 9] = np.minimum(d.min(axis=2, initial=np.inf), FAR)
-    ai = st.ahead_idx[cur]                                   # (R, D * D)
-    ahead = (now - np.take_along_axis(lv, ai, 1)).reshape(R, D, D) / tab.T
-    ahead = np.where(st.ahead_valid[cur], ahead, 0.0)
-    out[:, :, 10] = ahead.max(axis=2)
-    out[:, :, 11] = ahead.sum(axis=2) / st.ahead_count[cur]
-    out[:, :, 12] = st.degree[cur]
+    out[:, :, 2] = idl / np.where(top > 0, top, 1.0) + (top <= 0)
+    out[:, :, 3] = (idl >= top - 1e-9) & valid
+    mv = np.asarray(beliefs.mate_vertex, dtype=np.int64)[ids]      # (R, N)
+    mn = np.asarray(beliefs.mate_next, dtype=np.int64)[ids]
+    unknown = (mn < 0) | (np.arange(mn.shape[1])[None, :] == rows)
+    mv[unknown] = -1
+    mn[unknown] = -1
+    nb3 = nbr[:, :, None]
+    out[:, :, 6] = (mn[:, None, :] == nb3).sum(axis=2)
+    out[:, :, 7] = (mv[:, None, :] == nb3).sum(axis=2)
+    mn[unknown] = tab.n                                      # the "unknown" row of near/far
+    out[:, :, 8] = st.near[nb3, mn[:, None, :]].sum(axis=2)
+    out[:, :, 9] = st.far[nb3, mn[:, None, :]].min(axis=2, initial=FAR)
+    ahead = st.ahead_valid[cur] * (now - lv[rows[:, :, None], st.ahead_idx[cur]])
+    out[:, :, 10] = ahead.max(axis=2) / tab.T
+    out[:, :, 11] = ahead.sum(axis=2) / (st.ahead_count[cur] * tab.T)
     out[~valid] = 0.0
     return out.astype(np.float32), valid

@@ -12,6 +12,9 @@ Per run:
   each sample). The original writes info.csv's idleness fields at the last completed cycle,
   so a disagreement is reported, not fatal; the table always uses the samples.
 
+An algorithm whose runs differ by their ``algorithm_params`` (``params_in_label``: POLICY,
+whose params are the policy file's label) is named ``NAME params``.
+
 Runs are grouped by map, team size, algorithm and by every experimental setting that varies
 among the loaded runs (navigation module, initial positions, goal wait, communication
 delay), so runs made under different settings are never averaged together.
@@ -19,6 +22,7 @@ delay), so runs made under different settings are never averaged together.
 import numpy as np
 import pandas as pd
 
+from patrolling_sim.algorithms.base import display_name
 from patrolling_sim.monitor.run_status import longest_silence
 
 KEY = ("map", "N", "algorithm")
@@ -59,7 +63,8 @@ def run_table(runs):
             "prefix": r.prefix,
             "map": i["map"],
             "N": i["team_size"],
-            "algorithm": i["algorithm"],
+            # "POLICY <file>@<hash>": runs of different policy files are never averaged
+            "algorithm": display_name(i["algorithm"], i["algorithm_params"]),
             "nav_module": i["nav_module"],
             "initial_positions": i["initial_positions"],
             "goal_wait": i["goal_wait"],

@@ -33,7 +33,7 @@ from patrolling_sim.runner.video import assemble_video
 
 FLAG_KEYS = ("map", "robots", "initpos", "alg", "loc", "nav", "gwait", "comm_delay", "loss",
              "timeout", "cycles", "speedup", "seed", "results_dir", "record_period", "processes",
-             "dead_robot_timeout", "comm", "attrition")
+             "dead_robot_timeout", "comm", "attrition", "policy")
 BOOL_KEYS = ("rviz", "gui_sim", "record", "force")
 
 
@@ -63,6 +63,7 @@ def build_parser():
                     "(docs/scenarios.md)")
     ap.add_argument("--attrition", help="robot failures: none (default) | 'ROBOT@S[+REPAIR],...' "
                     "(sim s after GO) | random:rate=PER_ROBOT_HOUR,min_team=K[,repair=S]")
+    ap.add_argument("--policy", help="policy file (.npz) of --alg POLICY (docs/learning.md)")
     ap.add_argument("--timeout", type=float, help="sim seconds after GO (0 = none)")
     ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
     ap.add_argument("--speedup", type=float,

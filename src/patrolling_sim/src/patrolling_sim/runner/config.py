@@ -42,6 +42,8 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
     dead_robot_timeout  sim s without a visit report before a robot is declared dead
                  (run status FAIL); 0 = never                        (300, the original's)
     force        run even when the memory estimate exceeds the machine's  (false)
+    policy       policy file (.npz) of alg POLICY (docs/learning.md); ignored by the
+                 other algorithms                                    ("")
     processes    shared | separate | pooled[:K] | pooled-separate[:K]  (shared)
                  shared: all agents in one process (patrol_agents) and each robot's
                  localisation + move_base in one process (robot_nav) -- same topics and
@@ -114,6 +116,7 @@ class ExperimentConfig:
     processes: str = "shared"
     dead_robot_timeout: float = 300.0
     force: bool = False
+    policy: str = ""
 
     # ------------------------------------------------------------------ conversion
     def to_dict(self):
@@ -187,6 +190,7 @@ class ExperimentConfig:
         if self.alg not in REGISTRY:
             raise PatrolInputError(f"argument --alg: unknown algorithm '{self.alg}' (known: "
                                    f"{', '.join(sorted(REGISTRY))})")
+        REGISTRY[self.alg].check_params(self.strategy_params())
         self.nav = NAV_ALIASES.get(self.nav, self.nav)
         if self.loc not in LOC_MODES:
             raise PatrolInputError(f"argument --loc: must be one of {', '.join(LOC_MODES)}, "
@@ -250,6 +254,10 @@ class ExperimentConfig:
                 env = None
             validation.check_ros_navigation(self.loc, env)
         return self
+
+    def strategy_params(self):
+        """The agents' ``~params``: ``{"policy": absolute path}`` if ``policy`` is set."""
+        return validation.strategy_params({}, self.policy)
 
     def scenario(self):
         """(communication model, failure schedule) of this run, from ``comm`` and

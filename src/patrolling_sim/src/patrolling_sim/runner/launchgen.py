@@ -263,6 +263,7 @@ def _agents(a, cfg, n, agents):
         a(f'    <param name="team_size" value="{n}"/>')
         # agent i of patrol_agents gets ~seed + i: agent_seed(seed, i), as in graph mode
         a(f'    <param name="seed" value="{agent_seed(cfg.seed, 0)}"/>')
+        _strategy_params(a, cfg)
         a("  </node>")
     else:
         for i in range(n):
@@ -272,4 +273,11 @@ def _agents(a, cfg, n, agents):
             a(f'    <param name="map" value={_attr(cfg.map)}/>')
             a(f'    <param name="team_size" value="{n}"/>')
             a(f'    <param name="seed" value="{agent_seed(cfg.seed, i)}"/>')
+            _strategy_params(a, cfg)
             a("  </node>")
+
+
+def _strategy_params(a, cfg):
+    """Append an agent node's ``~params`` (the strategy's params, e.g. the policy file)."""
+    for key, value in sorted(cfg.strategy_params().items()):
+        a(f'    <param name="params/{key}" type="str" value={_attr(str(value))}/>')
