@@ -42,7 +42,7 @@ NUMERIC = (("--duration", float, 1200.0, "sim s per episode"),
            ("--episodes", int, 4, "episodes per iteration"),
            ("--hidden", int, 32, "width of the two hidden layers"),
            ("--lr", float, 1e-3, "Adam learning rate"),
-           ("--gamma", float, 0.9, "discount per decision"),
+           ("--gamma", float, 0.3, "discount per T of simulated time"),
            ("--lam", float, 0.95, "GAE lambda"),
            ("--clip", float, 0.2, "PPO clip range"),
            ("--epochs", int, 4, "PPO epochs per iteration"),
@@ -50,7 +50,7 @@ NUMERIC = (("--duration", float, 1200.0, "sim s per episode"),
            ("--entropy", float, 0.01, "entropy bonus"),
            ("--warm-start", int, 20, "episodes of imitation of the hand-written rule (0: none)"),
            ("--eval-every", int, 5, "iterations between validations (0: never)"),
-           ("--eval-graphs", int, 1, "validation graphs (first --maps form) per team size"),
+           ("--eval-graphs", int, 1, "validation graphs per map form and team size"),
            ("--seed", int, 0, "seed of everything"))
 
 
@@ -64,9 +64,9 @@ def build_parser():
                     help="team sizes drawn per episode")
     for flag, typ, default, text in NUMERIC:
         ap.add_argument(flag, type=typ, default=default, help=f"{text} (default {default})")
+    ap.add_argument("--quiet", action="store_true")
     ap.add_argument("--reward", default="avg_idleness", choices=("avg_idleness", "visit"),
                     help="the environment's reward summed between a robot's decisions")
-    ap.add_argument("--quiet", action="store_true")
     return ap
 
 
@@ -151,7 +151,8 @@ def np_scores(weights, x):
 
 
 def episode(env, weights, rng, seed, greedy=False):
-    """Run one episode; returns (per-robot trajectories [[(obs, mask, action)]], per-robot
+    """Run one episode; returns (per-robot trajectories [[(obs, mask, action, time / T)]],
+    per-robot
     rewards [[r]] (r_k: the rewards between decision k and the robot's next one), the
     time-averaged idleness of the run (s, from the steps' instantaneous average idleness))."""
     obs, infos = env.reset(seed=seed)
@@ -175,7 +176,7 @@ def episode(env, weights, rng, seed, greedy=False):
                 k = int(rng.choice(len(p), p=p))
             acts[a] = k
             i = env.agent_ids[a]
-            traj[i].append((obs[a], mask, k))
+            traj[i].append((obs[a], mask, k, infos[a]["time"] / env.tab.T))
             if len(traj[i]) >= 2 and env.opt.reward != "visit":
                 rews[i].append(acc[i])      # the rewards since its previous decision
             acc[i] = 0.0
@@ -195,7 +196,8 @@ def episode(env, weights, rng, seed, greedy=False):
 
 def batch_from(trajs, rews, nets, a):
     """Flat arrays (obs, mask, action, advantage, return) of the decisions that have a
-    reward (each robot's last decision has none and is dropped), GAE per robot."""
+    reward (each robot's last decision has none and is dropped), GAE per robot, discounted
+    by ``gamma`` per T of simulated time (a decision that comes sooner is not worth more)."""
     torch = nets.torch
     obs, masks, acts, advs, rets = [], [], [], [], []
     for traj, rew in zip(trajs, rews):
@@ -206,11 +208,13 @@ def batch_from(trajs, rews, nets, a):
         mk = np.stack([t[1] for t in traj[:m + 1]])
         with torch.no_grad():
             v = nets.value(torch.from_numpy(x), torch.from_numpy(mk)).numpy()
+        times = np.array([t[3] for t in traj[:m + 1]])
+        disc = a.gamma ** np.diff(times)
         adv = np.zeros(m)
         gae = 0.0
         for k in range(m - 1, -1, -1):
-            delta = rew[k] + a.gamma * v[k + 1] - v[k]
-            gae = delta + a.gamma * a.lam * gae
+            delta = rew[k] + disc[k] * v[k + 1] - v[k]
+            gae = delta + disc[k] * a.lam * gae
             adv[k] = gae
         obs.append(x[:m])
         masks.append(mk[:m])
@@ -255,14 +259,12 @@ def ppo_update(nets, batch, a, rng):
 
 
 def validate(envs, weights, a):
-    """Mean time-averaged idleness / T of greedy episodes on the validation graphs of the
-    first map form, one per team size and validation seed (T: the environment's time scale,
-    so that every team size weighs the same)."""
+    """Mean time-averaged idleness / T (the environment's time scale: every team size weighs
+    the same) of greedy episodes on the validation graphs of every map form, with the
+    smallest and the largest team size."""
     vals = []
     for (m, n), env in sorted(envs.items()):
-        if m != a.maps[0]:
-            continue
-        for k in range(a.eval_graphs):
+        for k in range(a.eval_graphs) if n in (min(a.robots), max(a.robots)) else ():
             idle = episode(env, weights, None, VALIDATION_SEED + k, greedy=True)[2]
             vals.append(idle / env.tab.T)
     return float(np.mean(vals))
@@ -281,14 +283,12 @@ def warm_start(nets, envs, keys, a, rng):
     it drives: cross-entropy of the actor's softmax on the rule's greedy choices."""
     torch = nets.torch
     rule = rule_weights()
-    xs, ms, ys = [], [], []
+    steps = []
     for _ in range(a.warm_start):
         env = envs[keys[int(rng.integers(len(keys)))]]
         traj, _, _ = episode(env, rule, rng, int(rng.integers(VALIDATION_SEED)), greedy=True)
-        for t in (t for tr in traj for t in tr):
-            xs.append(t[0])
-            ms.append(t[1])
-            ys.append(t[2])
+        steps += [t for tr in traj for t in tr]
+    xs, ms, ys = [t[0] for t in steps], [t[1] for t in steps], [t[2] for t in steps]
     D = max(x.shape[0] for x in xs)
     x = torch.from_numpy(np.stack([np.pad(v, ((0, D - v.shape[0]), (0, 0))) for v in xs]))
     m = torch.from_numpy(np.stack([np.pad(v, (0, D - v.shape[0])) for v in ms]))
