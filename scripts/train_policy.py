@@ -32,7 +32,6 @@ from patrolling_sim.learned.policyfile import save_policy  # noqa: E402
 from patrolling_sim.learned.slots import K, SLOT_FEATURES  # noqa: E402
 
 RANDOM_DEFAULT = "random:n=30,size=40,radius=12,max_degree=4,spacing=3"
-#: validation graphs are drawn from seeds at and above this (training uses seeds below)
 VALIDATION_SEED = 1_000_000
 
 
@@ -49,7 +48,7 @@ NUMERIC = (("--duration", float, 1200.0, "sim s per episode"),
            ("--minibatch", int, 512, "transitions per minibatch"),
            ("--entropy", float, 0.01, "entropy bonus"),
            ("--warm-start", int, 20, "episodes of imitation of the hand-written rule (0: none)"),
-           ("--eval-every", int, 5, "iterations between validations (0: never)"),
+           ("--eval-every", int, 5, "iterations between validations"),
            ("--eval-graphs", int, 1, "validation graphs per map form and team size"),
            ("--seed", int, 0, "seed of everything"))
 
@@ -60,6 +59,8 @@ def build_parser():
     ap.add_argument("--out", required=True, help="policy file to write (.npz)")
     ap.add_argument("--maps", nargs="+", default=[RANDOM_DEFAULT],
                     help="environment maps drawn per episode (random graph forms or maps)")
+    ap.add_argument("--validate-on", nargs="+", default=[], metavar="MAP",
+                    help="maps for validation only")
     ap.add_argument("--robots", type=int, nargs="+", default=[2, 4, 6, 8],
                     help="team sizes drawn per episode")
     for flag, typ, default, text in NUMERIC:
@@ -75,10 +76,11 @@ def check_args(a):
     def fail(name, what):
         raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be {what}, got "
                                f"{getattr(a, name)}")
-    for name in ("iterations", "episodes", "hidden", "epochs", "minibatch", "eval_graphs"):
+    for name in ("iterations", "episodes", "hidden", "epochs", "minibatch", "eval_graphs",
+                 "eval_every"):
         if getattr(a, name) < 1:
             fail(name, ">= 1")
-    for name in ("warm_start", "eval_every", "entropy"):
+    for name in ("warm_start", "entropy"):
         if getattr(a, name) < 0:
             fail(name, ">= 0")
     for name in ("duration", "lr"):
@@ -98,14 +100,18 @@ def check_args(a):
 
 
 def make_envs(a):
-    """{(map, robots): PatrolParallelEnv} for every combination (slot observation)."""
+    """({(map, robots): PatrolParallelEnv} of training (every --maps form and team size),
+    the same of validation: every --maps form and --validate-on map with the smallest and
+    the largest team size); slot observation."""
     from patrolling_sim.envs.parallel import PatrolParallelEnv
-    envs = {}
-    for m in a.maps:
-        for n in sorted(set(a.robots)):
-            envs[(m, n)] = PatrolParallelEnv(map=m, robots=n, duration=a.duration,
-                                             observation="slots", reward=a.reward)
-    return envs
+    sizes = sorted(set(a.robots))
+    train = {(m, n): PatrolParallelEnv(map=m, robots=n, duration=a.duration,
+                                       observation="slots", reward=a.reward)
+             for m in a.maps for n in sizes}
+    val = {(m, n): train.get((m, n)) or PatrolParallelEnv(
+        map=m, robots=n, duration=a.duration, observation="slots", reward=a.reward)
+        for m in a.maps + a.validate_on for n in (sizes[0], sizes[-1])}
+    return train, val
 
 
 class Nets:
@@ -260,11 +266,11 @@ def ppo_update(nets, batch, a, rng):
 
 def validate(envs, weights, a):
     """Mean time-averaged idleness / T (the environment's time scale: every team size weighs
-    the same) of greedy episodes on the validation graphs of every map form, with the
-    smallest and the largest team size."""
+    the same) of greedy episodes in the validation environments ``envs`` (validation seeds
+    of the random graphs; maps with their start positions)."""
     vals = []
     for (m, n), env in sorted(envs.items()):
-        for k in range(a.eval_graphs) if n in (min(a.robots), max(a.robots)) else ():
+        for k in range(a.eval_graphs):
             idle = episode(env, weights, None, VALIDATION_SEED + k, greedy=True)[2]
             vals.append(idle / env.tab.T)
     return float(np.mean(vals))
@@ -335,8 +341,9 @@ def save_outputs(a, best, curve, evals, wall):
     return label
 
 
-def train(a, envs):
-    """The training loop in ``envs`` (:func:`make_envs`); returns the policy's label."""
+def train(a, envs, val):
+    """The training loop in ``envs``, validated in ``val`` (:func:`make_envs`); returns the
+    policy's label."""
     import torch
     torch.manual_seed(a.seed)
     torch.set_num_threads(1)
@@ -345,14 +352,12 @@ def train(a, envs):
     nets = Nets(torch, a.hidden, a.lr)
     curve, evals = [], []
     t0 = time.monotonic()
-    best = (0, nets.numpy_weights(), np.inf)
     if a.warm_start:
         n, agree = warm_start(nets, envs, keys, a, rng)
         if not a.quiet:
             print(f"warm start: {n} decisions of the rule, agreement {agree:.3f}", flush=True)
-    if a.eval_every:
-        evals.append((0, validate(envs, nets.numpy_weights(), a)))
-        best = (0, nets.numpy_weights(), evals[-1][1])
+    evals.append((0, validate(val, nets.numpy_weights(), a)))
+    best = (0, nets.numpy_weights(), evals[-1][1])
     for it in range(1, a.iterations + 1):
         weights = nets.numpy_weights()
         trajs, rews = [], []
@@ -366,20 +371,15 @@ def train(a, envs):
         lp, lv = ppo_update(nets, batch, a, rng)
         curve.append((it, len(batch[2]), mean_r))
         line = f"iter {it}: {len(batch[2])} decisions, reward {mean_r:.4f}, loss {lp:.3f}/{lv:.3f}"
-        if a.eval_every and (it % a.eval_every == 0 or it == a.iterations):
-            evals.append((it, validate(envs, nets.numpy_weights(), a)))
+        if it % a.eval_every == 0 or it == a.iterations:
+            evals.append((it, validate(val, nets.numpy_weights(), a)))
             line += f", validation {evals[-1][1]:.4f}"
             if evals[-1][1] < best[2]:
                 best = (it, nets.numpy_weights(), evals[-1][1])
             save_outputs(a, best, curve, evals, time.monotonic() - t0)   # a checkpoint
         if not a.quiet:
             print(f"{line} ({time.monotonic() - t0:.0f} s)", flush=True)
-    if not a.eval_every:
-        best = (a.iterations, nets.numpy_weights(), np.nan)
-    label = save_outputs(a, best, curve, evals, time.monotonic() - t0)
-    for env in envs.values():
-        env.close()
-    return label
+    return save_outputs(a, best, curve, evals, time.monotonic() - t0)
 
 
 def main(argv):
@@ -390,8 +390,8 @@ def main(argv):
     except ImportError:
         raise PatrolInputError("torch is missing: install Debian's python3-torch "
                                "(scripts/packages.txt) and run with .venv/bin/python") from None
-    envs = make_envs(a)                 # a bad map or team size fails here, in one line
-    label = train(a, envs)
+    envs, val = make_envs(a)            # a bad map or team size fails here, in one line
+    label = train(a, envs, val)
     print(f"policy: {a.out} ({label}); curve {os.path.splitext(a.out)[0]}.png")
     return 0
 
