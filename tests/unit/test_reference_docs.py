@@ -172,8 +172,10 @@ def test_never_visited_cells_are_flagged_with_their_cause(tmp_path):
     assert _table_rows(page, 1)["CR"][-1] == "1 of 3 (up to 2)"
     assert "**CR**: in 1 of 3 seeds" in page and "Cause: **not documented**." in page
     index = docs.files["README.md"]
-    assert "2 cells have a seed in which some vertex got no visit" in index
-    assert "(1 without a documented cause)" in index
+    assert ("| grid | 2 | DTAG | never visited: 2 of 3 seeds, up to 3 vertices | "
+            "[documented](../algorithms/DTAG.md#x) |") in index.replace("[grid](grid.md)", "grid")
+    assert ("| 1 | CR | never visited: 1 of 3 seeds, up to 2 vertices | **not documented** |"
+            in index)
 
 
 @pytest.mark.parametrize("text,msg", [
@@ -198,3 +200,26 @@ def test_bad_causes_file_one_line_exit_2_nothing_written(tmp_path, text, msg):
 
 def test_shipped_causes_file_loads():
     assert rd.starvation.load_causes(os.path.join(ROOT, "campaigns", "reference_causes.yaml"))
+
+
+def test_a_worst_idleness_that_rises_with_the_team_is_flagged(tmp_path):
+    df = _starving_runs().assign(never_visited=0)
+    for n, w in ((1, 100.0), (2, 160.0)):            # 1r5 CR: 1.6x with 2 robots
+        df.loc[(df["map"] == "1r5") & (df["alg"] == "CR") & (df["robots"] == n),
+               "worst_idleness"] = w
+    for n, w in ((1, 100.0), (2, 140.0)):            # grid CR: 1.4x, under the 1.5 factor
+        df.loc[(df["map"] == "grid") & (df["alg"] == "CR") & (df["robots"] == n),
+               "worst_idleness"] = w
+    causes = tmp_path / "causes.yaml"
+    causes.write_text("- alg: CR\n  maps: [1r5]\n  robots: [2]\n  cause: the rise's cause.\n")
+    docs = rd.build_reference_docs(_write(tmp_path, df), "cmd", causes_file=str(causes))
+    worst = [h for _, h, _ in rd.METRICS].index("worst idleness [s]")
+    page = docs.files["1r5.md"]
+    assert _table_rows(page, 2)["CR"][2 + worst].startswith("↑ 160.0")
+    assert not _table_rows(page, 1)["CR"][2 + worst].startswith("↑")
+    assert ("**CR** (↑): its worst idleness, 160 s, is 1.6 times that of 1 robot on this map "
+            "(100 s). Cause: the rise's cause." in page)
+    assert not _table_rows(docs.files["grid.md"], 2)["CR"][2 + worst].startswith("↑")
+    index = docs.files["README.md"]
+    assert "1 cells are flagged (0 without a documented cause)" in index
+    assert "↑ worst idleness 1.6x that of 1 robot |" in index

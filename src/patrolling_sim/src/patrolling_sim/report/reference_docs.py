@@ -8,8 +8,9 @@ of :mod:`patrolling_sim.planning.references` (best closed tour, cyclic ``L/(k v)
 partition), and one figure (idleness vs team size per algorithm, the references as lines).
 Runs not done yet are counted (the pages say PARTIAL); runs that ended otherwise (CYCLES,
 FAIL, CRASHED, ERROR ...) are excluded from the means and counted per cell, never mixed in.
-Cells where some vertex was never visited in some seed are flagged, with their cause from a
-causes file (:mod:`patrolling_sim.report.starvation`).
+Cells where some vertex was never visited in some seed, or whose worst idleness rises with
+the team size, are flagged, with their cause from a causes file
+(:mod:`patrolling_sim.report.starvation`).
 The metric definitions are those of ``docs/metrics.md``.
 """
 import datetime
@@ -192,7 +193,7 @@ def _cell_stats(df, seeds):
             row[c + "_mean"] = float(v.mean()) if len(v) else float("nan")
             row[c + "_sd"] = float(v.std(ddof=1)) if len(v) > 1 else float("nan")
         rows.append(row)
-    return pd.DataFrame(rows)
+    return starvation.mark_rises(pd.DataFrame(rows))
 
 
 def _map_page(map_name, stats, refs, seeds, header, causes):
@@ -209,7 +210,9 @@ def _map_page(map_name, stats, refs, seeds, header, causes):
         "a balanced partition. *never visited*: in how many seeds some vertex got no visit "
         "in the whole run (and the most such vertices in one run); such a cell's worst "
         "idleness is marked ≥ (a vertex never visited counts the run's length: a lower "
-        "bound), and the note under the table gives the cause.", "",
+        "bound); ↑ marks a worst idleness over "
+        f"{starvation.RISE:g} times that of a smaller team on this map; the notes under a "
+        "table give the causes.", "",
         f"![{map_name}]({map_name}.png)", ""]
     for n in sorted(refs):
         r = refs[n]
@@ -225,19 +228,24 @@ def _map_page(map_name, stats, refs, seeds, header, causes):
                 mark += f" ({row['novisit']} without a visit)"
             flag = starvation.flag_text(row["starved"], row["n"], row["starved_most"])
             # a never-visited vertex makes the worst idleness a lower bound (the run's length)
+            rise = int(row["rise_from"])
+            worst_mark = ("≥ " if flag else "") + ("↑ " if rise else "")
             lines.append(f"| {row['alg']} | {row['n']}{mark} | {row['excluded']} | " + " | ".join(
-                ("≥ " if flag and c == "worst_idleness" else "")
+                (worst_mark if c == "worst_idleness" else "")
                 + _fmt(row[c + "_mean"], row[c + "_sd"], d) for c, _, d in METRICS)
                 + f" | {flag} |")
+            cause = starvation.cause_of(causes, row["alg"], map_name, n)
             if flag:
                 notes.append(starvation.note_line(
-                    row["alg"], row["starved"], row["n"], row["duration"],
-                    starvation.cause_of(causes, row["alg"], map_name, n)))
+                    row["alg"], row["starved"], row["n"], row["duration"], cause))
+            if rise:
+                notes.append(starvation.rise_line(row["alg"], row["worst_idleness_mean"], rise,
+                                                  row["rise_worst"], cause))
         cy, pa = f"{r.cyclic_idleness:.1f}", f"{r.partition_idleness:.1f}"
         lines += [f"| *cyclic reference L/(k v)* | | | {cy} | | {cy} | {cy} | | |",
                   f"| *partition reference* | | | | | {pa} | {pa} | | |", ""]
         if notes:
-            lines += ["Never-visited vertices:", ""] + notes + [""]
+            lines += ["Flagged cells:", ""] + notes + [""]
         lines += [
                   f"Best closed tour L = {r.tour_length:.1f} m "
                   f"({'exact' if r.tour_exact else 'heuristic'}); cyclic L/(k v) = "
@@ -310,30 +318,9 @@ def build_reference_docs(campaign_dir: str, command: str,
         refs = _map_references(m, sizes, speed)
         docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header, causes)
         docs.files[f"{m}.png"] = _figure(m, sm, refs, algs)
-    index += _starved_index(stats, causes)
+    index += starvation.index_section(stats, causes)
     docs.files["README.md"] = "\n".join(index) + "\n"
     return docs
-
-
-def _starved_index(stats, causes):
-    """The index's list of cells with a never-visited vertex (empty when there is none)."""
-    flagged = stats[stats["starved"] > 0].sort_values(["map", "alg", "robots"])
-    if flagged.empty:
-        return []
-    rows, undocumented = [], 0
-    for _, r in flagged.iterrows():
-        c = starvation.cause_of(causes, r["alg"], r["map"], int(r["robots"]))
-        undocumented += c is None
-        why = "**not documented**" if c is None else (
-            f"[documented](../{c.link})" if c.link else "documented (on the map's page)")
-        rows.append(f"| [{r['map']}]({r['map']}.md) | {r['robots']} | {r['alg']} | "
-                    f"{r['starved']} of {r['n']} | {r['starved_most']} | {why} |")
-    return ["", "## Cells with a never-visited vertex", "",
-            f"{len(flagged)} cells have a seed in which some vertex got no visit in the whole "
-            f"run ({undocumented} without a documented cause). Their worst idleness is the "
-            "run's length; each map's page says why under the table.", "",
-            "| map | robots | algorithm | seeds | most vertices | cause |",
-            "|---|---|---|---|---|---|"] + rows
 
 
 def write_docs(docs: ReferenceDocs, out: str) -> List[str]:

@@ -1,9 +1,15 @@
-"""Never-visited vertices in the reference tables: which cells have them and why.
+"""Starving cells of the reference tables: which cells they are and why.
 
-A run whose ``never_visited`` count (``docs/metrics.md``) is above zero left some vertex
-without a single visit for its whole duration; its worst idleness is then the run's length,
-not an interval anyone measured. The reference tables flag such cells ("a vertex was never
-visited in k of n seeds") and give the cause, read from a *causes file*: a YAML list of
+Two kinds of cells are flagged:
+
+- **never visited**: a run whose ``never_visited`` count (``docs/metrics.md``) is above zero
+  left some vertex without a single visit for its whole duration; its worst idleness is then
+  the run's length, not an interval anyone measured ("a vertex was never visited in k of n
+  seeds");
+- **rises with the team**: the cell's mean worst idleness is over :data:`RISE` times the
+  lowest of the same map and algorithm with fewer robots (more robots patrol worse).
+
+The tables give the cause of each flagged cell, read from a *causes file*: a YAML list of
 entries
 
 .. code-block:: yaml
@@ -26,6 +32,8 @@ import yaml
 from patrolling_sim.common.errors import PatrolInputError
 
 ALL = "all"
+#: a cell's worst idleness "rises with the team" above this factor times a smaller team's
+RISE = 1.5
 _KEYS = {"alg", "maps", "robots", "cause", "link"}
 
 
@@ -110,7 +118,71 @@ def note_line(alg: str, starved: int, n: int, duration, cause: Optional[Cause],
     d = f"{float(duration):g} s" if duration == duration else "the run"
     head = (f"- **{alg}**: in {starved} of {n} seeds some vertex was never visited in "
             f"{d}; its worst idleness there is the run's length, not a measured interval. ")
+    return head + _cause_text(cause, docs_prefix)
+
+
+def mark_rises(stats):
+    """Add to ``stats`` (one row per map, robots, alg, with ``worst_idleness_mean``) the
+    columns ``rise_from`` (the smaller team whose worst idleness is the lowest, or 0) and
+    ``rise_worst`` (that worst idleness) for the cells whose worst idleness is over
+    :data:`RISE` times it; 0 and NaN elsewhere. Returns ``stats``."""
+    stats["rise_from"] = 0
+    stats["rise_worst"] = float("nan")
+    for _, g in stats.groupby(["map", "alg"]):
+        best_n, best = 0, float("inf")
+        for i, r in g.sort_values("robots").iterrows():
+            w = r["worst_idleness_mean"]
+            if w == w and best_n and w > RISE * best:
+                stats.loc[i, "rise_from"] = best_n
+                stats.loc[i, "rise_worst"] = best
+            if w == w and w < best:
+                best_n, best = int(r["robots"]), w
+    return stats
+
+
+def rise_line(alg: str, worst: float, smaller: int, smaller_worst: float,
+              cause: Optional[Cause], docs_prefix: str = "../") -> str:
+    """The sentence printed under a table for a cell whose worst idleness rises with the
+    team: ``worst`` against ``smaller_worst`` with ``smaller`` robots."""
+    head = (f"- **{alg}** (↑): its worst idleness, {worst:.0f} s, is "
+            f"{worst / smaller_worst:.1f} times that of {smaller} "
+            f"robot{'s' if smaller > 1 else ''} on this map ({smaller_worst:.0f} s). ")
+    return head + _cause_text(cause, docs_prefix)
+
+
+def _cause_text(cause, docs_prefix):
     if cause is None:
-        return head + "Cause: **not documented**."
+        return "Cause: **not documented**."
     link = f" ([more]({docs_prefix}{cause.link}))" if cause.link else ""
-    return head + f"Cause: {cause.cause}{link}"
+    return f"Cause: {cause.cause}{link}"
+
+
+def index_section(stats, causes) -> List[str]:
+    """The index's list of flagged cells (empty when there is none), with the count of
+    those without a documented cause."""
+    flagged = stats[(stats["starved"] > 0) | (stats["rise_from"] > 0)]
+    if flagged.empty:
+        return []
+    rows, undocumented = [], 0
+    for _, r in flagged.sort_values(["map", "alg", "robots"]).iterrows():
+        c = cause_of(causes, r["alg"], r["map"], int(r["robots"]))
+        undocumented += c is None
+        why = "**not documented**" if c is None else (
+            f"[documented](../{c.link})" if c.link else "documented (on the map's page)")
+        kinds = []
+        if r["starved"]:
+            kinds.append(f"never visited: {r['starved']} of {r['n']} seeds, up to "
+                         f"{r['starved_most']} vertices")
+        if r["rise_from"]:
+            k = int(r["rise_from"])
+            kinds.append(f"↑ worst idleness {r['worst_idleness_mean'] / r['rise_worst']:.1f}x "
+                         f"that of {k} robot{'s' if k > 1 else ''}")
+        rows.append(f"| [{r['map']}]({r['map']}.md) | {r['robots']} | {r['alg']} | "
+                    f"{'; '.join(kinds)} | {why} |")
+    return ["", "## Flagged cells", "",
+            f"{len(flagged)} cells are flagged ({undocumented} without a documented cause): "
+            "a seed in which some vertex got no visit in the whole run (the cell's worst "
+            "idleness is then the run's length, marked ≥), or a worst idleness over "
+            f"{RISE:g} times that of a smaller team on the same map (marked ↑). Each map's "
+            "page gives the cause under the table.", "",
+            "| map | robots | algorithm | flag | cause |", "|---|---|---|---|---|"] + rows
