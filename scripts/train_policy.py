@@ -37,7 +37,7 @@ VALIDATION_SEED = 1_000_000
 
 #: numeric options: (flag, type, default, help)
 NUMERIC = (("--duration", float, 1200.0, "sim s per episode"),
-           ("--iterations", int, 60, "PPO iterations"),
+           ("--iterations", int, 60, "PPO iterations (0: the warm start alone)"),
            ("--episodes", int, 4, "episodes per iteration"),
            ("--hidden", int, 32, "width of the two hidden layers"),
            ("--lr", float, 1e-3, "Adam learning rate"),
@@ -76,11 +76,10 @@ def check_args(a):
     def fail(name, what):
         raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be {what}, got "
                                f"{getattr(a, name)}")
-    for name in ("iterations", "episodes", "hidden", "epochs", "minibatch", "eval_graphs",
-                 "eval_every"):
+    for name in ("episodes", "hidden", "epochs", "minibatch", "eval_graphs", "eval_every"):
         if getattr(a, name) < 1:
             fail(name, ">= 1")
-    for name in ("warm_start", "entropy"):
+    for name in ("iterations", "warm_start", "entropy"):
         if getattr(a, name) < 0:
             fail(name, ">= 0")
     for name in ("duration", "lr"):

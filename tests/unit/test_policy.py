@@ -145,7 +145,7 @@ def test_sampled_mode_is_seeded():
 
 
 def test_report_names_policy_runs_by_their_file():
-    assert display_name("POLICY", "slots_ppo@0123abcd") == "POLICY slots_ppo@0123abcd"
+    assert display_name("POLICY", "slots_bc@0123abcd") == "POLICY slots_bc@0123abcd"
     assert display_name("POLICY", "") == "POLICY"
     assert display_name("DTAG", "1,2") == "DTAG"
 

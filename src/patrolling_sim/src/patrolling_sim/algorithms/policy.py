@@ -6,7 +6,7 @@ sends too), builds the slot observation with the environment's own code
 network of a policy file (:mod:`patrolling_sim.learned.policyfile`).
 
 Parameters (``ctx.params``): ``policy`` (path of the ``.npz`` file; default the shipped
-``policies/slots_ppo.npz``, :data:`DEFAULT_POLICY`), ``policy_mode``
+``policies/slots_bc.npz``, :data:`DEFAULT_POLICY`), ``policy_mode``
 (``greedy``, default: the valid slot of highest score, first on ties; ``sample``: drawn from
 the softmax of the scores with ``ctx.rng``), ``start_vertices`` (the team's start vertices,
 given by graph mode; unknown teammates count nowhere until they report).
@@ -22,7 +22,7 @@ from patrolling_sim.learned.slots import SlotTables, slot_features
 
 MODES = ("greedy", "sample")
 #: the shipped policy used without a ``policy`` param (``policies/<name>.npz``)
-DEFAULT_POLICY = "slots_ppo"
+DEFAULT_POLICY = "slots_bc"
 
 
 def policy_path(params) -> str:

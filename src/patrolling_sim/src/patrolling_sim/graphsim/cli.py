@@ -60,7 +60,7 @@ def build_parser():
                          "'random:rate=R,min_team=K[,repair=S]' (docs/scenarios.md)")
     ap.add_argument("--policy", default="",
                     help="policy file (.npz) of --alg POLICY (default: the shipped "
-                         "policies/slots_ppo.npz; docs/learning.md)")
+                         "policies/slots_bc.npz; docs/learning.md)")
     ap.add_argument("--results-dir", default="results")
     ap.add_argument("--repeat", type=int, default=1,
                     help="run this many times with seeds seed, seed+1, ...")

@@ -64,7 +64,7 @@ def build_parser():
     ap.add_argument("--attrition", help="robot failures: none (default) | 'ROBOT@S[+REPAIR],...' "
                     "(sim s after GO) | random:rate=PER_ROBOT_HOUR,min_team=K[,repair=S]")
     ap.add_argument("--policy", help="policy file (.npz) of --alg POLICY (default: the "
-                    "shipped policies/slots_ppo.npz; docs/learning.md)")
+                    "shipped policies/slots_bc.npz; docs/learning.md)")
     ap.add_argument("--timeout", type=float, help="sim seconds after GO (0 = none)")
     ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
     ap.add_argument("--speedup", type=float,
