@@ -37,7 +37,8 @@ With ``--ours shared|separate`` every run of the original is followed by a run o
 Usage:
     bench/original_agents.py --orig-ws PATH --alg DTAP [--map grid] [--robots 4]
                              [--duration 600] [--runs 20] [--first 0] [--speedup 30]
-                             [--ours separate] [--out DIR] [--json FILE] [--summary CSV]
+                             [--ours separate [--ours-only]] [--out DIR] [--json FILE]
+                             [--summary CSV]
 """
 import argparse
 import filecmp
@@ -241,6 +242,8 @@ def parse_args():
     ap.add_argument("--speedup", type=float, default=30.0)
     ap.add_argument("--ours", choices=("shared", "separate"),
                     help="after each run of the original, one of our agents (seed = index)")
+    ap.add_argument("--ours-only", action="store_true",
+                    help="with --ours: only our agents' runs (the original's were made before)")
     ap.add_argument("--their-graph", action="store_true",
                     help="the agents read the original's own graph file even where it differs "
                          "from ours")
@@ -253,6 +256,8 @@ def parse_args():
     for name, low in (("runs", 1), ("first", 0), ("robots", 1)):
         if getattr(a, name) < low:
             ap.error(f"argument --{name}: must be >= {low}, got {getattr(a, name)}")
+    if a.ours_only and not a.ours:
+        ap.error("argument --ours-only: needs --ours")
     for name in ("speedup", "duration"):
         if getattr(a, name) <= 0:
             ap.error(f"argument --{name}: must be > 0, got {getattr(a, name):g}")
@@ -313,13 +318,15 @@ def main():
     ctx = {"env": env, "pkg": pkg, "binary": binary}
     raw = {"original": [], "ours": []}
     for k in range(a.first, a.first + a.runs):
-        for who in ("original", "ours") if a.ours else ("original",):
+        for who in ("ours",) if a.ours_only else ("original", "ours") if a.ours else (
+                "original",):
             d = os.path.join(out, f"{who}_{k:02d}")
             os.makedirs(d, exist_ok=True)
             r = one_run(a, who, k, d, ctx)
             if r.complete(a.duration):
                 raw[who].append(r.figures())
-    print(summary("original's agents", raw["original"]))
+    if not a.ours_only:
+        print(summary("original's agents", raw["original"]))
     if a.ours:
         print(summary(f"our agents (--processes {a.ours})", raw["ours"]))
     if a.json:

@@ -1,0 +1,161 @@
+#!/usr/bin/python3
+"""The fidelity matrix (docs/fidelity_matrix.md): for every cell (map x team size x
+algorithm) with stored runs of the original's own agents (tests/unit/data/original_matrix/,
+README there), the mean of those runs against this project's graph mode in the same world
+(the same map, team, default start positions and duration; straight-line travel at 1 m/s, no
+interference, goal wait 0) over several seeds, and against this project's agents in ROS mode
+(the abstract world) where the runs file holds runs of ours for the cell.
+
+Figures: average idleness (mean of the idleness samples), maximum idleness, visits; each
+compared with the original's mean within the tolerances of tests/unit/original_matrix.py
+(avg 10 %, max 25 %, visits 10 %). A cell listed in the known-differences file is marked so.
+
+Usage:
+    bench/fidelity_matrix.py [--runs CSV] [--seeds 2] [--out docs/fidelity_matrix.md]
+                             [--json FILE]
+"""
+import argparse
+import json
+import os
+import statistics
+import sys
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.join(ROOT, "tests", "unit"))
+sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
+sys.path.insert(0, os.path.join(ROOT, "src", "spqrel_nav_lite", "src"))
+import original_matrix as om  # noqa: E402
+
+MARK = {True: "yes", False: "**no**"}
+
+
+def fmt(fig):
+    return f"{fig[0]:.1f} / {fig[1]:.1f} / {fig[2]:.0f}"
+
+
+def fmt_rel(cmp):
+    return " / ".join(f"{cmp[m][0]:+.0%}" for m in om.METRICS)
+
+
+def verdict(cmp, reasons):
+    """'yes', '**no**' (metrics out of tolerance named), or 'known' where every metric out
+    of tolerance is a documented difference."""
+    bad = [m for m in om.METRICS if not cmp[m][1]]
+    if not bad:
+        return "yes", True
+    if all(reasons.get(m) for m in bad):
+        return "known (" + ", ".join(bad) + ")", False
+    return "**no** (" + ", ".join(bad) + ")", False
+
+
+def measure(rows, seeds):
+    """[(key, original runs, graph runs, ROS runs)] for every cell of the original."""
+    ros = {}
+    for who in ("ours_separate", "ours_shared"):
+        for k, v in om.cells(rows, who).items():
+            ros.setdefault(k, []).extend(v)
+    out = []
+    for key, orig in sorted(om.cells(rows).items()):
+        map_name, robots, alg, duration = key
+        graph = [om.graph_run(map_name, robots, alg, s, duration)[:3] for s in range(seeds)]
+        out.append((key, orig, graph, ros.get(key, [])))
+        print(f"  {map_name} {robots} {alg}: done", file=sys.stderr, flush=True)
+    return out
+
+
+def table(cells, known, seeds):
+    lines = ["| map | N | alg | original: runs, avg / max / visits | original's max: range "
+             f"| graph mode, {seeds} seeds | graph vs original (avg / max / visits) | within "
+             "| ROS mode (runs) | ROS vs original |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    n_in = n_cells = n_known = 0
+    worst = []
+    for (map_name, robots, alg, _), orig, graph, ros in cells:
+        ref, got = om.mean_figures(orig), om.mean_figures(graph)
+        cmp = om.compare(ref, got)
+        reasons = {m: om.known_reason(known, map_name, robots, alg, m) for m in om.METRICS}
+        word, ok = verdict(cmp, reasons)
+        n_cells += 1
+        n_in += ok
+        n_known += word.startswith("known")
+        worst.append((max(abs(cmp[m][0]) / om.TOL[m] for m in om.METRICS),
+                      f"{map_name} {robots} {alg}", fmt_rel(cmp)))
+        ros_txt = ros_cmp = ""
+        if ros:
+            r = om.mean_figures(ros)
+            ros_txt = f"{fmt(r)} ({len(ros)})"
+            ros_cmp = fmt_rel(om.compare(ref, r))
+        spread = f"{min(r[1] for r in orig):.0f}-{max(r[1] for r in orig):.0f}"
+        lines.append(f"| {map_name} | {robots} | {alg} | {len(orig)}: {fmt(ref)} | {spread} "
+                     f"| {fmt(got)} | {fmt_rel(cmp)} | {word} | {ros_txt} | {ros_cmp} |")
+    return lines, (n_in, n_known), n_cells, sorted(worst, reverse=True)
+
+
+def page(cells, known, seeds, runs_path):
+    lines, (n_in, n_known), n_cells, worst = table(cells, known, seeds)
+    durations = sorted({k[3] for k, *_ in cells})
+    rel = os.path.relpath(runs_path, ROOT)
+    out = [
+        "# Fidelity matrix: the original's own agents against this project",
+        "",
+        "Generated; regenerate with",
+        "",
+        "```",
+        f"bench/fidelity_matrix.py --runs {rel} --seeds {seeds} --out docs/fidelity_matrix.md",
+        "```",
+        "",
+        "Every row is one cell (map, team size N, algorithm) with runs of the original's own "
+        "agents (built from its source, run in this project's abstract world with this "
+        "project's monitor; how, in the README beside the runs file) against this project's "
+        "graph mode in the same world: the same map, team and default start positions, "
+        f"{' and '.join(f'{d:g}' for d in durations)} sim s after GO, straight-line travel "
+        "at 1 m/s, no interference, goal wait 0, seeds 0 to "
+        f"{seeds - 1}. Figures: average idleness (s, mean of the idleness samples) / maximum "
+        "idleness (s) / visits, means over the runs; differences relative to the original's "
+        f"mean. Within tolerance: average {om.TOL['avg']:.0%}, maximum "
+        f"{om.TOL['max']:.0%}, visits {om.TOL['visits']:.0%}; \"known\" marks a difference "
+        "documented in the known-differences file beside the runs (its reason is below). "
+        "The ROS-mode column holds runs of our agents in the abstract world where they exist.",
+        "",
+        f"**{n_in} of {n_cells} cells within tolerance**; {n_known} more differ only in "
+        "documented ways (known differences), "
+        f"{n_cells - n_in - n_known} in undocumented ways.",
+        "",
+        *lines,
+        "",
+        "## Largest differences (in units of the tolerance)",
+        "",
+    ]
+    out += [f"- {name}: {rel_txt}" for score, name, rel_txt in worst[:8] if score > 1]
+    if known:
+        out += ["", "## Known differences", "", "| map | N | alg | metric | reason |",
+                "|---|---|---|---|---|"]
+        out += [f"| {k[0]} | {k[1]} | {k[2]} | {k[3]} | {v} |" for k, v in known.items()]
+    return "\n".join(out) + "\n", n_in, n_cells
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", default=om.RUNS, help="summary CSV of the original's runs")
+    ap.add_argument("--seeds", type=int, default=len(om.SEEDS))
+    ap.add_argument("--out", help="write the Markdown page here (default: print it)")
+    ap.add_argument("--json", help="write every cell's figures here")
+    a = ap.parse_args()
+    rows = om.read_rows(a.runs)
+    cells = measure(rows, a.seeds)
+    text, n_in, n_cells = page(cells, om.known_differences(), a.seeds, os.path.abspath(a.runs))
+    if a.out:
+        with open(a.out, "w", encoding="utf-8") as f:
+            f.write(text)
+        print(f"{a.out}: {n_in} of {n_cells} cells within tolerance")
+    else:
+        print(text)
+    if a.json:
+        with open(a.json, "w", encoding="utf-8") as f:
+            json.dump([{"cell": list(k), "original": o, "graph": g, "ros": r,
+                        "original_sd": [statistics.pstdev(x[i] for x in o) for i in range(3)]}
+                       for k, o, g, r in cells], f)
+
+
+if __name__ == "__main__":
+    main()
