@@ -43,6 +43,8 @@ def test_abstract_world_failure(tmp_path, alg, attrition):
     assert run.complete(FAILURE_DURATION), run.output[-3000:]
     robot = int(attrition.split("@")[0])
     visits = read_visits(run.prefix + "_visits.csv")
-    assert not [t for t, r, _ in visits if r == robot and t > 151.0]
+    # nothing from the failed robot once its failure is in (a report already under way when
+    # the failure came may land a few simulated seconds late on a loaded machine, at x30)
+    assert not [t for t, r, _ in visits if r == robot and t > 155.0]
     # adapted once the survivors gave the silent robot up (120 s, checked every 10 s)
     assert visited(run, 300.0) == set(range(GRID_VERTICES))

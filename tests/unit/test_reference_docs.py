@@ -186,15 +186,22 @@ def test_never_visited_cells_are_flagged_with_their_cause(tmp_path):
     ("- alg: DTAG\n  maps: all\n  robots: all\n  cause: x\n  why: y\n", "unknown key(s) why"),
     ("- [\n", "bad YAML"),
 ])
-def test_bad_causes_file_one_line_exit_2_nothing_written(tmp_path, text, msg):
-    camp = _write(tmp_path, _starving_runs())
+def test_bad_causes_file_is_one_line_naming_it(tmp_path, text, msg):
     causes = tmp_path / "causes.yaml"
     causes.write_text(text)
+    with pytest.raises(PatrolInputError) as e:
+        rd.build_reference_docs(_write(tmp_path, _starving_runs()), "cmd",
+                                causes_file=str(causes))
+    assert "\n" not in str(e.value) and msg in str(e.value) and str(causes) in str(e.value)
+
+
+def test_bad_causes_file_exit_2_nothing_written(tmp_path):
+    camp = _write(tmp_path, _starving_runs())
     out = tmp_path / "ref"
     r = subprocess.run([sys.executable, SCRIPT, camp, "--out", str(out), "--causes",
-                        str(causes)], capture_output=True, text=True)
+                        str(tmp_path / "missing.yaml")], capture_output=True, text=True)
     assert r.returncode == 2, r.stderr
-    assert r.stderr.count("\n") == 1 and msg in r.stderr and str(causes) in r.stderr
+    assert r.stderr.count("\n") == 1 and "missing.yaml: cannot read causes file" in r.stderr
     assert not out.exists()
 
 
