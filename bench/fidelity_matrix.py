@@ -128,9 +128,8 @@ def page(cells, known, seeds, runs_path):
     ]
     out += [f"- {name}: {rel_txt}" for score, name, rel_txt in worst[:8] if score > 1]
     if known:
-        out += ["", "## Known differences", "", "| map | N | alg | metric | reason |",
-                "|---|---|---|---|---|"]
-        out += [f"| {k[0]} | {k[1]} | {k[2]} | {k[3]} | {v} |" for k, v in known.items()]
+        out += ["", "## Known differences", ""]
+        out += [f"- **{k[0]} {k[1]} {k[2]}** (metric {k[3]}): {v}" for k, v in known.items()]
     return "\n".join(out) + "\n", n_in, n_cells
 
 
