@@ -13,6 +13,9 @@ are known (``ctx.params['start_vertices']``), else region i goes to robot i. ``M
 import logging
 import os
 
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
 from patrolling_sim.common import paths
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.planning.msp_routes import load_route
@@ -24,17 +27,35 @@ log = logging.getLogger(__name__)
 
 
 def assign_regions(pgraph, regions, start_vertices):
-    """Greedy matching of regions to robots by graph distance from each robot's start vertex
-    to its region (closest pairs first; deterministic). Returns region index per robot."""
+    """Region index per robot: a one-to-one matching of ``regions`` (lists of vertices) to
+    robots (their ``start_vertices``) that first minimises the longest graph distance from
+    a robot's start vertex to its region (a bottleneck assignment: no robot is left with a
+    far region while a nearer matching exists), then the sum of those distances
+    (deterministic). Needs as many regions as robots.
+
+    Uses :func:`scipy.optimize.linear_sum_assignment` (the Hungarian method) for both
+    steps: the bottleneck is the smallest distance threshold under which a perfect matching
+    exists, found by bisection over the distinct distances.
+    """
     D = pgraph.dist
-    pairs = sorted((min(D[s, v] for v in reg), r, i)
-                   for r, s in enumerate(start_vertices) for i, reg in enumerate(regions))
-    robot_region, used = {}, set()
-    for _, r, i in pairs:
-        if r not in robot_region and i not in used:
-            robot_region[r] = i
-            used.add(i)
-    return [robot_region[r] for r in range(len(start_vertices))]
+    cost = np.array([[min(D[s, v] for v in reg) for reg in regions] for s in start_vertices],
+                    dtype=float)
+    big = 1.0 + cost.sum() * 2 * len(regions)
+
+    def matching(limit):
+        c = np.where(cost <= limit, cost, big)
+        rows, cols = linear_sum_assignment(c)
+        return cols[np.argsort(rows)], bool((c[rows, cols] < big).all())
+
+    levels = np.unique(cost)
+    lo, hi = 0, len(levels) - 1              # a perfect matching exists at levels[hi]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if matching(levels[mid])[1]:
+            hi = mid
+        else:
+            lo = mid + 1
+    return [int(i) for i in matching(levels[lo])[0]]
 
 
 def msp_route(pgraph, map_name, team_size, robot_id, start_vertices=None, route_file=None):
