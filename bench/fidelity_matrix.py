@@ -12,7 +12,10 @@ compared with the original's mean within the tolerances of tests/unit/original_m
 
 Usage:
     bench/fidelity_matrix.py [--runs CSV] [--seeds 2] [--out docs/fidelity_matrix.md]
-                             [--json FILE]
+                             [--json FILE] [--status FILE]
+
+--status writes one CSV row per cell (map, robots, alg, status within / known / differs,
+detail), which scripts/reference_docs.py --fidelity links from the reference tables.
 """
 import argparse
 import json
@@ -25,6 +28,7 @@ sys.path.insert(0, os.path.join(ROOT, "tests", "unit"))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 sys.path.insert(0, os.path.join(ROOT, "src", "spqrel_nav_lite", "src"))
 import original_matrix as om  # noqa: E402
+from patrolling_sim.report import fidelity_status  # noqa: E402
 
 MARK = {True: "yes", False: "**no**"}
 
@@ -69,7 +73,7 @@ def table(cells, known, seeds):
              "| ROS mode (runs) | ROS vs original |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     n_in = n_cells = n_known = 0
-    worst = []
+    worst, status = [], []
     for (map_name, robots, alg, _), orig, graph, ros in cells:
         ref, got = om.mean_figures(orig), om.mean_figures(graph)
         cmp = om.compare(ref, got)
@@ -78,6 +82,9 @@ def table(cells, known, seeds):
         n_cells += 1
         n_in += ok
         n_known += word.startswith("known")
+        status.append((map_name, robots, alg,
+                       "within" if ok else "known" if word.startswith("known") else "differs",
+                       fmt_rel(cmp)))
         worst.append((max(abs(cmp[m][0]) / om.TOL[m] for m in om.METRICS),
                       f"{map_name} {robots} {alg}", fmt_rel(cmp)))
         ros_txt = ros_cmp = ""
@@ -88,11 +95,11 @@ def table(cells, known, seeds):
         spread = f"{min(r[1] for r in orig):.0f}-{max(r[1] for r in orig):.0f}"
         lines.append(f"| {map_name} | {robots} | {alg} | {len(orig)}: {fmt(ref)} | {spread} "
                      f"| {fmt(got)} | {fmt_rel(cmp)} | {word} | {ros_txt} | {ros_cmp} |")
-    return lines, (n_in, n_known), n_cells, sorted(worst, reverse=True)
+    return lines, (n_in, n_known), n_cells, sorted(worst, reverse=True), status
 
 
 def page(cells, known, seeds, runs_path):
-    lines, (n_in, n_known), n_cells, worst = table(cells, known, seeds)
+    lines, (n_in, n_known), n_cells, worst, status = table(cells, known, seeds)
     durations = sorted({k[3] for k, *_ in cells})
     rel = os.path.relpath(runs_path, ROOT)
     out = [
@@ -101,7 +108,8 @@ def page(cells, known, seeds, runs_path):
         "Generated; regenerate with",
         "",
         "```",
-        f"bench/fidelity_matrix.py --runs {rel} --seeds {seeds} --out docs/fidelity_matrix.md",
+        f"bench/fidelity_matrix.py --runs {rel} --seeds {seeds} --out docs/fidelity_matrix.md \\",
+        "    --status docs/fidelity_status.csv",
         "```",
         "",
         "Every row is one cell (map, team size N, algorithm) with runs of the original's own "
@@ -130,7 +138,7 @@ def page(cells, known, seeds, runs_path):
     if known:
         out += ["", "## Known differences", ""]
         out += [f"- **{k[0]} {k[1]} {k[2]}** (metric {k[3]}): {v}" for k, v in known.items()]
-    return "\n".join(out) + "\n", n_in, n_cells
+    return "\n".join(out) + "\n", n_in, n_cells, status
 
 
 def main():
@@ -139,16 +147,21 @@ def main():
     ap.add_argument("--seeds", type=int, default=len(om.SEEDS))
     ap.add_argument("--out", help="write the Markdown page here (default: print it)")
     ap.add_argument("--json", help="write every cell's figures here")
+    ap.add_argument("--status", help="write every cell's status here (CSV, for "
+                    "scripts/reference_docs.py --fidelity)")
     a = ap.parse_args()
     rows = om.read_rows(a.runs)
     cells = measure(rows, a.seeds)
-    text, n_in, n_cells = page(cells, om.known_differences(), a.seeds, os.path.abspath(a.runs))
+    text, n_in, n_cells, status = page(cells, om.known_differences(), a.seeds,
+                                       os.path.abspath(a.runs))
     if a.out:
         with open(a.out, "w", encoding="utf-8") as f:
             f.write(text)
         print(f"{a.out}: {n_in} of {n_cells} cells within tolerance")
     else:
         print(text)
+    if a.status:
+        fidelity_status.write_status(a.status, status)
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:
             json.dump([{"cell": list(k), "original": o, "graph": g, "ros": r,

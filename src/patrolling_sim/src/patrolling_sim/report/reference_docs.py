@@ -10,27 +10,28 @@ Runs not done yet are counted (the pages say PARTIAL); runs that ended otherwise
 FAIL, CRASHED, ERROR ...) are excluded from the means and counted per cell, never mixed in.
 Cells where some vertex was never visited in some seed, or whose worst idleness rises with
 the team size, are flagged, with their cause from a causes file
-(:mod:`patrolling_sim.report.starvation`).
+(:mod:`patrolling_sim.report.starvation`). Campaigns that re-ran some algorithms replace those
+algorithms' runs (:mod:`patrolling_sim.report.reference_sources`), and cells measured against
+the original's own agents link their status (:mod:`patrolling_sim.report.fidelity_status`).
 The metric definitions are those of ``docs/metrics.md``.
 """
 import datetime
 import io
 import os
+import shlex
+import sys
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
-
-import yaml
+from typing import Dict, List, Optional, Sequence
 
 from patrolling_sim.common import paths
 from patrolling_sim.common.errors import PatrolInputError
-import shlex
-import sys
 from patrolling_sim.common.cli import CliParser
 from patrolling_sim.common.cli import run_main
 from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.model.graph import load_graph
 from patrolling_sim.planning.references import references
-from patrolling_sim.report import starvation
+from patrolling_sim.report import fidelity_status, starvation
+from patrolling_sim.report.reference_sources import merge_sources
 
 #: (runs.csv column, heading, decimals): the columns of every table
 METRICS = (("idl_avg", "avg idleness (original) [s]", 1),
@@ -38,6 +39,8 @@ METRICS = (("idl_avg", "avg idleness (original) [s]", 1),
            ("worst_idleness", "worst idleness [s]", 1),
            ("idl_max", "max idleness (original) [s]", 1),
            ("total_visits", "visits", 0))
+#: where a measured cell's fidelity status links to (relative to docs/reference/)
+FIDELITY_LINK = "../fidelity_matrix.md"
 #: the only status averaged: a run that patrolled for the whole duration
 USED_STATUS = "TIMEOUT"
 NOT_RUN = "NOT_RUN"
@@ -196,7 +199,7 @@ def _cell_stats(df, seeds):
     return starvation.mark_rises(pd.DataFrame(rows))
 
 
-def _map_page(map_name, stats, refs, seeds, header, causes):
+def _map_page(map_name, stats, refs, seeds, header, causes, fidelity):
     lines = [f"# Reference tables: {map_name}", ""] + header + [
         f"Mean ± SD over the seeds of the runs that ended with {USED_STATUS} (n of {seeds} "
         "seeds; **n\\*** marks a cell with fewer seeds than the campaign's; *excl.* counts runs "
@@ -217,10 +220,11 @@ def _map_page(map_name, stats, refs, seeds, header, causes):
     for n in sorted(refs):
         r = refs[n]
         s = stats[stats["robots"] == n]
+        extra = " vs original |" if fidelity else ""
         lines += [f"## {n} robot{'s' if n > 1 else ''}", "",
                   "| algorithm | n | excl. | " + " | ".join(h for _, h, _ in METRICS)
-                  + " | never visited |",
-                  "|---|---|---|" + "---|" * (len(METRICS) + 1)]
+                  + " | never visited |" + extra,
+                  "|---|---|---|" + "---|" * (len(METRICS) + 1 + bool(fidelity))]
         notes = []
         for _, row in s.iterrows():
             mark = "\\*" if row["n"] < seeds else ""
@@ -233,7 +237,8 @@ def _map_page(map_name, stats, refs, seeds, header, causes):
             lines.append(f"| {row['alg']} | {row['n']}{mark} | {row['excluded']} | " + " | ".join(
                 (worst_mark if c == "worst_idleness" else "")
                 + _fmt(row[c + "_mean"], row[c + "_sd"], d) for c, _, d in METRICS)
-                + f" | {flag} |")
+                + f" | {flag} |" + (" " + fidelity_status.cell_text(
+                    fidelity, map_name, n, row["alg"], FIDELITY_LINK) + " |" if fidelity else ""))
             cause = starvation.cause_of(causes, row["alg"], map_name, n)
             if flag:
                 notes.append(starvation.note_line(
@@ -242,8 +247,9 @@ def _map_page(map_name, stats, refs, seeds, header, causes):
                 notes.append(starvation.rise_line(row["alg"], row["worst_idleness_mean"], rise,
                                                   row["rise_worst"], cause))
         cy, pa = f"{r.cyclic_idleness:.1f}", f"{r.partition_idleness:.1f}"
-        lines += [f"| *cyclic reference L/(k v)* | | | {cy} | | {cy} | {cy} | | |",
-                  f"| *partition reference* | | | | | {pa} | {pa} | | |", ""]
+        pad = " |" if fidelity else ""
+        lines += [f"| *cyclic reference L/(k v)* | | | {cy} | | {cy} | {cy} | | |" + pad,
+                  f"| *partition reference* | | | | | {pa} | {pa} | | |" + pad, ""]
         if notes:
             lines += ["Flagged cells:", ""] + notes + [""]
         lines += [
@@ -254,47 +260,44 @@ def _map_page(map_name, stats, refs, seeds, header, causes):
     return "\n".join(lines)
 
 
-def _provenance(campaign_dir):
-    p = os.path.join(campaign_dir, "provenance.yaml")
-    try:
-        with open(p) as f:
-            d = yaml.safe_load(f)
-        return d if isinstance(d, dict) else {}
-    except (OSError, yaml.YAMLError):
-        return {}
-
-
 def build_reference_docs(campaign_dir: str, command: str,
                          now: Optional[datetime.datetime] = None,
-                         causes_file: Optional[str] = None) -> ReferenceDocs:
+                         causes_file: Optional[str] = None, replace: Sequence[str] = (),
+                         fidelity_file: Optional[str] = None) -> ReferenceDocs:
     """The pages of ``campaign_dir`` (nothing written). ``command``: the command line that
     generated them, written at the top of the index. ``causes_file``: why some cells have a
     never-visited vertex (:mod:`patrolling_sim.report.starvation`); without it every such
-    cell says "cause not documented".
+    cell says "cause not documented". ``replace``: campaign folders whose algorithms' runs
+    replace those of ``campaign_dir`` (:mod:`patrolling_sim.report.reference_sources`).
+    ``fidelity_file``: the fidelity matrix's status file; with it every table gets a column
+    "vs original" (:mod:`patrolling_sim.report.fidelity_status`).
 
     Raises:
-        PatrolInputError: one line, for a bad campaign folder or causes file.
+        PatrolInputError: one line, for a bad campaign folder, causes or status file.
     """
     causes = starvation.load_causes(causes_file)
-    df = load_runs(campaign_dir)
-    prov = _provenance(campaign_dir)
+    fidelity = fidelity_status.load_status(fidelity_file)
+    df, sources = merge_sources(campaign_dir, replace, load_runs)
+    prov = sources[0].provenance
     now = now or datetime.datetime.now(datetime.timezone.utc)
     seeds = int(df.groupby(CELL).size().max())
     stats = _cell_stats(df, seeds)
     docs = ReferenceDocs(total=len(df), done=int((df["status"] == USED_STATUS).sum()),
                          excluded=int(((df["status"] != USED_STATUS)
                                        & (df["status"] != NOT_RUN)).sum()))
-    code = prov.get("code") or {}
-    commit = str(code.get("commit", "unknown"))
-    dirty = " (dirty)" if code.get("dirty") else ""
+    commit = sources[0].commit
+    dirty = " (dirty)" if sources[0].dirty else ""
     counts = df["status"].value_counts().sort_index()
     state = (f"**PARTIAL: {docs.done} of {docs.total} runs done** "
              f"({docs.total - docs.done - docs.excluded} not run yet, {docs.excluded} excluded)"
              if docs.partial else f"complete: {docs.done} of {docs.total} runs done"
              + (f", {docs.excluded} excluded" if docs.excluded else ""))
+    also = "".join(f"; {', '.join(src.algs)} from the campaign `{src.name}` (code commit "
+                   f"`{src.commit[:12]}`{' (dirty)' if src.dirty else ''})"
+                   for src in sources[1:])
     header = [f"Generated by `{command}` on {now.strftime('%Y-%m-%d %H:%M UTC')} from the "
-              f"campaign `{prov.get('name', os.path.basename(os.path.abspath(campaign_dir)))}` "
-              f"(code commit `{commit[:12]}`{dirty}). {state}.", ""]
+              f"campaign `{sources[0].name}` (code commit `{commit[:12]}`{dirty}){also}. "
+              f"{state}.", ""]
     speed = float(df["speed"].iloc[0]) if "speed" in df else 1.0
     maps = sorted(df["map"].astype(str).unique())
     algs = sorted(df["alg"].astype(str).unique())
@@ -303,6 +306,9 @@ def build_reference_docs(campaign_dir: str, command: str,
              f"`{os.path.basename(str(prov.get('file', 'campaign.yaml')))}`, code commit "
              f"`{commit}`{dirty}; campaign run from {prov.get('start', '?')} to "
              f"{prov.get('end', '?')} on `{prov.get('client_host', '?')}`.", "",
+             *(["Runs by campaign: every algorithm's runs come from one campaign "
+                "(a campaign that re-ran an algorithm replaces its runs):", ""]
+               + [f"- {src.line()}" for src in sources] + [""] if len(sources) > 1 else []),
              state + ".", "",
              "Status counts: " + ", ".join(f"{k} {v}" for k, v in counts.items()) + ". Only "
              f"runs that ended with {USED_STATUS} are averaged; the others are counted per "
@@ -316,7 +322,7 @@ def build_reference_docs(campaign_dir: str, command: str,
         index.append(f"| [{m}]({m}.md) | {', '.join(map(str, sizes))} | "
                      f"{sm['alg'].nunique()} | {int(sm['n'].sum())} | {tot} |")
         refs = _map_references(m, sizes, speed)
-        docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header, causes)
+        docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header, causes, fidelity)
         docs.files[f"{m}.png"] = _figure(m, sm, refs, algs)
     index += starvation.index_section(stats, causes)
     docs.files["README.md"] = "\n".join(index) + "\n"
@@ -349,9 +355,16 @@ def main(argv=None):
         ap.add_argument("--causes", default=None, metavar="FILE",
                         help="YAML file: why cells have a never-visited vertex (the shipped "
                         "tables use campaigns/reference_causes.yaml; see docs/campaigns.md)")
+        ap.add_argument("--replace", action="append", default=[], metavar="DIR",
+                        help="a campaign folder that re-ran some algorithms over the same "
+                        "grid: their runs replace the base campaign's (repeatable)")
+        ap.add_argument("--fidelity", default=None, metavar="FILE",
+                        help="the fidelity matrix's status CSV (bench/fidelity_matrix.py "
+                        "--status): adds a column 'vs original' linked to the matrix")
         a = ap.parse_args(args)
         command = shlex.join(["scripts/reference_docs.py"] + list(args))
-        docs = build_reference_docs(a.campaign_dir, command, causes_file=a.causes)
+        docs = build_reference_docs(a.campaign_dir, command, causes_file=a.causes,
+                                    replace=a.replace, fidelity_file=a.fidelity)
         write_docs(docs, a.out)
         print(f"reference_docs.py: {len(docs.files)} files in {a.out} ({docs.done} of "
               f"{docs.total} runs done{', PARTIAL' if docs.partial else ''})")

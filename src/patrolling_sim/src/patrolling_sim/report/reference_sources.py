@@ -1,0 +1,111 @@
+"""The runs behind the reference tables: one base campaign, and campaigns that replace some
+of its algorithms.
+
+When an algorithm's code changes, only its rows of the reference tables are stale. Rather
+than re-running every algorithm (a campaign's run keys include the code commit), a second
+campaign re-runs the changed algorithms over the same grid, and its runs *replace* that
+algorithm's runs of the base campaign: every run of an algorithm then comes from exactly one
+campaign, never two, and the pages name the campaign and code commit of each algorithm.
+
+:func:`merge_sources` takes the base folder and the replacing folders and returns the merged
+runs with one :class:`Source` per folder.
+"""
+import os
+from dataclasses import dataclass, field
+from typing import Callable, List, Sequence, Tuple
+
+import yaml
+
+from patrolling_sim.common.errors import PatrolInputError
+
+#: the columns naming a run within a campaign's grid
+RUN_ID = ["map", "robots", "alg", "seed"]
+
+
+@dataclass
+class Source:
+    """One campaign folder of the tables: its provenance and the algorithms taken from it."""
+    folder: str
+    provenance: dict
+    algs: List[str] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return str(self.provenance.get("name", os.path.basename(os.path.abspath(self.folder))))
+
+    @property
+    def commit(self) -> str:
+        return str((self.provenance.get("code") or {}).get("commit", "unknown"))
+
+    @property
+    def dirty(self) -> bool:
+        return bool((self.provenance.get("code") or {}).get("dirty"))
+
+    def line(self) -> str:
+        """One Markdown line: the campaign, its code commit, its run period, its algorithms."""
+        p = self.provenance
+        return (f"campaign `{self.name}` (file `{os.path.basename(str(p.get('file', '?')))}`, "
+                f"code commit `{self.commit[:12]}`{' (dirty)' if self.dirty else ''}, run from "
+                f"{p.get('start', '?')} to {p.get('end', '?')} on `{p.get('client_host', '?')}`)"
+                f": {', '.join(self.algs)}")
+
+
+def read_provenance(folder: str) -> dict:
+    """``provenance.yaml`` of a campaign folder as a dict (empty if absent or unreadable)."""
+    try:
+        with open(os.path.join(folder, "provenance.yaml")) as f:
+            d = yaml.safe_load(f)
+        return d if isinstance(d, dict) else {}
+    except (OSError, yaml.YAMLError):
+        return {}
+
+
+def _config_columns(df) -> List[str]:
+    status_at = list(df.columns).index("status")
+    return [c for c in list(df.columns)[:status_at] if c not in ("key", "mode", *RUN_ID)]
+
+
+def merge_sources(base: str, replacements: Sequence[str],
+                  load: Callable[[str], object]) -> Tuple[object, List[Source]]:
+    """(runs, sources): the runs of the campaign folder ``base`` in which every algorithm
+    present in a folder of ``replacements`` has its runs from that folder instead.
+
+    ``load`` reads one folder's ``runs.csv`` as a checked DataFrame (the reference tables'
+    loader). The first :class:`Source` is the base (the algorithms it still provides), then
+    one per replacement, in order.
+
+    Raises:
+        PatrolInputError: one line naming the folder, if a replacing folder holds an
+            algorithm the base has not, or another folder already replaces, or its runs of an
+            algorithm are not the same grid (maps, team sizes, seeds) as the base's, or a
+            setting (duration, speed, ...) differs from the base's.
+    """
+    import pandas as pd
+    df = load(base)
+    sources = [Source(base, read_provenance(base))]
+    taken = {}
+    parts = []
+    for folder in replacements:
+        rep = load(folder)
+        algs = sorted(rep["alg"].astype(str).unique())
+        for a in algs:
+            if a in taken:
+                raise PatrolInputError(f"{folder}: algorithm {a} is already replaced by "
+                                       f"{taken[a]}")
+            mine, theirs = rep[rep["alg"] == a], df[df["alg"] == a]
+            if theirs.empty:
+                raise PatrolInputError(f"{folder}: algorithm {a} is not in the base campaign "
+                                       f"{base}")
+            if set(map(tuple, mine[RUN_ID].values)) != set(map(tuple, theirs[RUN_ID].values)):
+                raise PatrolInputError(f"{folder}: the runs of {a} are not the same maps, team "
+                                       f"sizes and seeds as in {base}")
+            for c in _config_columns(theirs):
+                if c in mine and (set(mine[c].astype(str)) != set(theirs[c].astype(str))):
+                    raise PatrolInputError(f"{folder}: setting {c} of {a} differs from {base}'s")
+            taken[a] = folder
+        parts.append(rep)
+        sources.append(Source(folder, read_provenance(folder), algs))
+    kept = df[~df["alg"].isin(list(taken))]
+    sources[0].algs = sorted(kept["alg"].astype(str).unique())
+    merged = pd.concat([kept] + parts, ignore_index=True) if parts else df
+    return merged, sources
