@@ -50,7 +50,7 @@ def test_replaced_algorithm_comes_from_the_replacing_campaign_only(tmp_path):
 @pytest.mark.parametrize("case,msg", [
     ("grid", "not the same maps, team sizes and seeds"),
     ("setting", "setting duration of DTAG differs"),
-    ("unknown", "algorithm XX is not in the base campaign"),
+    ("unknown", "the runs of XX are not the same maps, team sizes and seeds"),
     ("twice", "already replaced by"),
 ])
 def test_mismatched_replacement_is_one_line_error(tmp_path, case, msg):
@@ -61,8 +61,8 @@ def test_mismatched_replacement_is_one_line_error(tmp_path, case, msg):
         new = new[new["seed"] != 0]
     elif case == "setting":
         new["duration"] = 600
-    elif case == "unknown":
-        new["alg"] = "XX"
+    elif case == "unknown":                  # an added algorithm must cover the whole grid
+        new = new[new["map"] == "grid"].assign(alg="XX")
     if case == "twice":
         folders.append(_folder(tmp_path, "again", new, "c" * 40))
     else:
@@ -95,3 +95,19 @@ def test_bad_status_file_is_one_line_error(tmp_path, text, msg):
     p.write_text(text)
     with pytest.raises(PatrolInputError, match=msg.replace("(", r"\(").replace(")", r"\)")):
         fidelity_status.load_status(str(p))
+
+
+def test_added_algorithm_covers_the_whole_grid_and_keeps_its_label(tmp_path):
+    base = _runs().assign(status="TIMEOUT")
+    one = base[base["alg"] == "CR"].assign(alg="POLICY", idl_avg=7.0)
+    one["prefix"] = [f"r{i}" for i in range(len(one))]
+    folder = _folder(tmp_path, "learned", one, "d" * 40)
+    for p in one["prefix"]:                    # the monitor's info.csv: the policy's label
+        (tmp_path / "learned" / f"{p}_info.csv").write_text(
+            "grid;1;default;0.0;0.00;graph;POLICY;mine@0123abcd;vm;20260101_000000;300.0;"
+            "1.0;1;TIMEOUT;0.5;7.0;1.0;20.0;0.1;100;10.0;5\n")
+    docs = rd.build_reference_docs(_folder(tmp_path, "base", base, "a" * 40), "cmd",
+                                   replace=[folder])
+    rows = _table_rows(docs.files["grid.md"], 1)
+    assert rows["POLICY mine@0123abcd"][2].startswith("7.0") and "CR" in rows
+    assert docs.total == len(base) + len(one)

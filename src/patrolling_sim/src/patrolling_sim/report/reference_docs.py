@@ -31,7 +31,7 @@ from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.model.graph import load_graph
 from patrolling_sim.planning.references import references
 from patrolling_sim.report import fidelity_status, starvation
-from patrolling_sim.report.reference_sources import merge_sources
+from patrolling_sim.report.reference_sources import display_names, merge_sources
 
 #: (runs.csv column, heading, decimals): the columns of every table
 METRICS = (("idl_avg", "avg idleness (original) [s]", 1),
@@ -199,7 +199,7 @@ def _cell_stats(df, seeds):
     return starvation.mark_rises(pd.DataFrame(rows))
 
 
-def _map_page(map_name, stats, refs, seeds, header, causes, fidelity):
+def _map_page(map_name, stats, refs, seeds, header, causes, fidelity, names):
     lines = [f"# Reference tables: {map_name}", ""] + header + [
         f"Mean ± SD over the seeds of the runs that ended with {USED_STATUS} (n of {seeds} "
         "seeds; **n\\*** marks a cell with fewer seeds than the campaign's; *excl.* counts runs "
@@ -234,7 +234,8 @@ def _map_page(map_name, stats, refs, seeds, header, causes, fidelity):
             # a never-visited vertex makes the worst idleness a lower bound (the run's length)
             rise = int(row["rise_from"])
             worst_mark = ("≥ " if flag else "") + ("↑ " if rise else "")
-            lines.append(f"| {row['alg']} | {row['n']}{mark} | {row['excluded']} | " + " | ".join(
+            name = names.get(row["alg"], row["alg"])
+            lines.append(f"| {name} | {row['n']}{mark} | {row['excluded']} | " + " | ".join(
                 (worst_mark if c == "worst_idleness" else "")
                 + _fmt(row[c + "_mean"], row[c + "_sd"], d) for c, _, d in METRICS)
                 + f" | {flag} |" + (" " + fidelity_status.cell_text(
@@ -279,6 +280,7 @@ def build_reference_docs(campaign_dir: str, command: str,
     fidelity = fidelity_status.load_status(fidelity_file)
     df, sources = merge_sources(campaign_dir, replace, load_runs)
     prov = sources[0].provenance
+    names = display_names(df)
     now = now or datetime.datetime.now(datetime.timezone.utc)
     seeds = int(df.groupby(CELL).size().max())
     stats = _cell_stats(df, seeds)
@@ -322,7 +324,8 @@ def build_reference_docs(campaign_dir: str, command: str,
         index.append(f"| [{m}]({m}.md) | {', '.join(map(str, sizes))} | "
                      f"{sm['alg'].nunique()} | {int(sm['n'].sum())} | {tot} |")
         refs = _map_references(m, sizes, speed)
-        docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header, causes, fidelity)
+        docs.files[f"{m}.md"] = _map_page(m, sm, refs, seeds, header, causes, fidelity,
+                                          names)
         docs.files[f"{m}.png"] = _figure(m, sm, refs, algs)
     index += starvation.index_section(stats, causes)
     docs.files["README.md"] = "\n".join(index) + "\n"
