@@ -118,10 +118,32 @@ def test_runner_launch_in_the_abstract_world(tmp_path):
 
 def test_auction_trace_summary():
     """The world's auction trace (PATROLLING_SIM_TRACE_AUCTIONS=1) summarises the delays
-    from a task request to the bids on it."""
-    import abstract_world
-    line = abstract_world.round_trip_summary([0.02, 0.04, 0.6, 1.2, 0.02])
+    from a task request to the bids on it, in sim and wall s."""
+    from clock_hold import AuctionTrace
+    t = AuctionTrace()
+    assert t.summary() == "auction bids traced: none"
+    for sim, wall, delay in [(1.0, 10.0, 0.02), (2.0, 11.0, 0.04), (3.0, 12.0, 0.6),
+                             (4.0, 13.0, 1.2), (5.0, 14.0, 0.0)]:
+        t.note([0, 41, 7, 100], sim, wall)
+        t.note([1, 42, 7, 50], sim + delay, wall + 0.003)
+    t.note([1, 42, 8, 50], 9.0, 20.0)          # no request on vertex 8: not a bid traced
+    line = t.summary()
     assert line.startswith("auction bids traced: n 5,")
     assert "median 0.040" in line and "max 1.200" in line
-    assert "over 0.5 s 2, over 1 s 1" in line
-    assert abstract_world.round_trip_summary([]) == "auction bids traced: none"
+    assert "over 0.5 s 2, over 1 s 1, after the clock moved 4" in line
+    assert "wall ms median 3.0" in line
+
+
+def test_a_goal_with_a_start_time_waits_for_it():
+    """The reaction time: a goal given before ``start`` leaves at the first step that
+    begins at or after it."""
+    w = aw.StraightLineWorld([(0.0, 0.0)], speed=1.0, step=0.02)
+    w.set_goal(0, 1.0, 0.0, start=0.08)
+    for _ in range(4):
+        w.advance()
+    assert w.pos[0] == [0.0, 0.0] and w.moving(0)
+    w.advance()                                # the step from 0.08 to 0.10 s moves
+    assert w.pos[0][0] == pytest.approx(0.02)
+    w.set_goal(0, 2.0, 0.0, start=0.0)         # a start in the past: at once
+    w.advance()
+    assert w.pos[0][0] == pytest.approx(0.04)

@@ -21,25 +21,25 @@ can be compared with the original's on equal terms, and a cheap world for ROS-le
 - with ``~feedback`` true, move_base feedback (``base_position`` in ``map``) with each
   odometry message; the reference world sent none, so the agents never published
   /positions and never detected interference;
-- the clock waits for an agent's reaction: when a robot arrived ``/goal_reached_wait`` +
-  ``~reaction_time`` sim s ago and has no new goal yet, the clock stops until the goal
-  comes, for at most ``~reaction_wait`` wall s per arrival (then the agent is taken to wait
-  on purpose), so slow agents on a loaded machine do not lose sim time;
+- a robot leaves ``/goal_reached_wait`` + ``~reaction_time`` sim s after an arrival at the
+  earliest; then the clock waits for its goal (at most ``~reaction_wait`` wall s); after
+  an arrival, a goal or a ``/results`` message the clock waits until the traffic is quiet
+  (at most ``~message_wait`` wall s per hold; ``clock_hold.py``): pace and load cost no
+  sim time;
 - ``~status`` (std_msgs/String, JSON) about twice a wall second: sim time, achieved pace
-  (``rtf``), GO seen, goals / successes / preemptions per robot.
+  (``rtf``), GO seen, goals / successes / preemptions per robot, the clock holds.
 
-Start positions come from ``/initial_pos`` (flat x0,y0,x1,y1,...), the team size from
-``~team_size`` (default: all of ``/initial_pos``). At shutdown the node logs a summary: goals
-per robot and the sim time between a SUCCEEDED and the robot's next goal (the agents'
-turnaround, which costs patrol time in this world as in the reference runs).
+Start positions from ``/initial_pos`` (flat x0,y0,x1,y1,...), the team size ``~team_size``
+(default: all). At shutdown the node logs goals per robot, the clock holds and the sim time
+between a SUCCEEDED and the robot's next goal (the agents' turnaround).
 
 Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20),
 ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
-~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.05 wall s; 0 = never hold).
+~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.05 wall s; 0 = never hold),
+~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off).
 
-Diagnostic: with the environment variable ``PATROLLING_SIM_TRACE_AUCTIONS=1`` the node keeps
-reading ``/results`` after GO and logs at shutdown the sim time from each DTA task request
-(type 41) to every bid (type 42) it sees for that vertex (docs/abstract_world.md).
+Diagnostic: with ``PATROLLING_SIM_TRACE_AUCTIONS=1`` in its environment the node logs at
+shutdown the sim and wall s from each DTA task request (type 41) to each bid (type 42).
 """
 import json
 import math
@@ -51,23 +51,21 @@ import time
 
 # the motion model lives beside this script (Python puts the script folder on sys.path)
 from straight_line_world import EPS, StraightLineWorld, read_positions
+from clock_hold import AuctionTrace, HoldCounter, MessageHold, reaction_deadline, totals
 
 STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5 Hz)
-#: sim s an agent gets to send its next goal after an arrival (plus /goal_reached_wait)
-#: before the clock waits for it: the reference runs' median turnaround (4 steps of 20 ms)
+#: sim s from an arrival (plus /goal_reached_wait) to the next departure at the earliest, and
+#: then the clock waits for the goal: the reference runs' median turnaround (4 steps of 20 ms)
 REACTION_TIME = 0.08
 #: wall s the clock waits at most per arrival (then the agent is taken to wait on purpose)
 REACTION_WAIT = 0.05
-
-
-def round_trip_summary(delays):
-    """One line on the request-to-bid delays (sim s) of the auctions traced."""
-    if not delays:
-        return "auction bids traced: none"
-    d = sorted(delays)
-    return (f"auction bids traced: n {len(d)}, request->bid sim s median {d[len(d) // 2]:.3f} "
-            f"p90 {d[int(0.9 * (len(d) - 1))]:.3f} max {d[-1]:.3f}, over 0.5 s "
-            f"{sum(x > 0.5 for x in d)}, over 1 s {sum(x > 1.0 for x in d)}")
+#: wall s of quiet after a message or goal before the clock moves on (delivery takes < 1 ms)
+MESSAGE_QUIET = 0.005
+#: wall s of quiet after a DTA task request, unless every teammate bid (x30 quiet: bids came
+#: within 3 ms in 9 of 10 cases, 20 ms at most)
+ANSWER_QUIET = 0.02
+#: wall s the clock waits at most per message hold (then it runs on and counts a time-out)
+MESSAGE_WAIT = 0.1
 
 
 class RobotServer:
@@ -103,13 +101,15 @@ class RobotServer:
         with self.node.lock:
             old, self.gh = self.gh, gh
             gh.set_accepted()
-            self.node.world.set_goal(self.i, p.x, p.y)
-            self.goals += 1
+            start = 0.0                 # a reaction takes hold_after sim s, never less
             if self.done_at is not None:
                 self.turnaround.append(self.node.world.time - self.done_at)
-                self.done_at = None
+                start, self.done_at = self.done_at + self.node.hold_after, None
+            self.node.world.set_goal(self.i, p.x, p.y, start)
+            self.goals += 1
             self.hold_since, self.released = None, False
-            self.node.goal_arrived.notify_all()
+            self.node.message_hold.note(time.monotonic())
+            self.node.traffic.notify_all()
             if old is not None:
                 self.preempted += 1
         if old is not None:
@@ -122,6 +122,8 @@ class RobotServer:
             self.gh = None
             self.node.world.stop(self.i)
             self.preempted += 1
+            self.node.message_hold.note(time.monotonic())
+            self.node.traffic.notify_all()
         gh.set_canceled(text="cancelled: robot stopped")
 
     def fill_odom(self, stamp, world):
@@ -160,13 +162,17 @@ class WorldNode:
         self.feedback = bool(rospy.get_param("~feedback", False))
         self.publish_tf = bool(rospy.get_param("~publish_tf", True))
         self.lock = threading.Lock()
-        self.goal_arrived = threading.Condition(self.lock)
+        self.traffic = threading.Condition(self.lock)       # a goal or a message came
         gwait = float(rospy.get_param("/goal_reached_wait", 0.0))
         self.hold_after = gwait + float(rospy.get_param("~reaction_time", REACTION_TIME))
         self.hold_limit = float(rospy.get_param("~reaction_wait", REACTION_WAIT))
-        self.holds = self.releases = 0
+        self.reaction = HoldCounter()
         if self.hold_after < 0 or self.hold_limit < 0:
             raise ValueError("~reaction_time and ~reaction_wait must be >= 0")
+        self.message_hold = MessageHold(float(rospy.get_param("~message_quiet", MESSAGE_QUIET)),
+                                        float(rospy.get_param("~answer_quiet", ANSWER_QUIET)),
+                                        float(rospy.get_param("~message_wait", MESSAGE_WAIT)),
+                                        len(positions))
         self.go_at = None
         self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=1)
         self.clock = Clock()
@@ -177,8 +183,8 @@ class WorldNode:
             self.tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=1)
             self.tf_msg = TFMessage()
             self._static_tf(TFMessage)
-        self.trace = [] if os.environ.get("PATROLLING_SIM_TRACE_AUCTIONS") == "1" else None
-        self.trace_req = {}                     # vertex -> sim time of its last task request
+        self.trace = (AuctionTrace() if os.environ.get("PATROLLING_SIM_TRACE_AUCTIONS") == "1"
+                      else None)
         self.results_sub = rospy.Subscriber("/results", Int16MultiArray, self._on_results,
                                             queue_size=100)
         for r in self.robots:
@@ -190,9 +196,8 @@ class WorldNode:
                 timer.shutdown()
         self.status_every = max(1, round(STATUS_PERIOD / self.world.step_length))
         rospy.loginfo("abstract_world: %d robots, %.2f m/s, step %.3f s, x%g (x%g before GO), "
-                      "feedback %s", len(self.robots), self.world.speed,
-                      self.world.step_length, self.speedup, self.speedup_before_go,
-                      self.feedback)
+                      "feedback %s", len(self.robots), self.world.speed, self.world.step_length,
+                      self.speedup, self.speedup_before_go, self.feedback)
 
     def _static_tf(self, TFMessage):
         from geometry_msgs.msg import TransformStamped
@@ -213,11 +218,13 @@ class WorldNode:
 
     def _on_results(self, msg):
         d = msg.data
-        if self.trace is not None and len(d) >= 4:
-            if d[1] == 41:                          # task request: [id, 41, v, bid]
-                self.trace_req[d[2]] = self.world.time
-            elif d[1] == 42 and d[2] in self.trace_req:
-                self.trace.append(self.world.time - self.trace_req[d[2]])
+        now = time.monotonic()
+        if len(d) >= 2:                             # any message: the agents react to GO too
+            with self.lock:
+                self.message_hold.note(now, d)
+                self.traffic.notify_all()
+        if self.trace is not None:
+            self.trace.note(d, self.world.time, now)
         if len(d) >= 3 and d[0] == -1 and d[1] == 10 and d[2] == 100 and self.go_at is None:
             self.go_at = self.world.time
             self.rospy.loginfo("abstract_world: GO at sim %.2f s", self.go_at)
@@ -246,7 +253,8 @@ class WorldNode:
         last_status = 0.0
         rtf = 0.0
         while not rospy.is_shutdown():
-            if self.hold_limit > 0 and self._hold_for_reactions():
+            held = self.hold_limit > 0 and self._hold_for_reactions()
+            if self._hold_for_messages() or held:
                 next_wall = time.monotonic()       # the clock stood still: no catch-up
             with self.lock:
                 arrived = self.world.advance()
@@ -264,13 +272,16 @@ class WorldNode:
             for gh in handles:
                 if gh is not None:
                     gh.set_succeeded()
+            if handles:                 # an arrival is traffic: the agents react to it
+                with self.lock:
+                    self.message_hold.note(time.monotonic())
             if self.world.steps % self.odom_every == 0:
                 self._publish_odometry(t)
             if self.world.steps % self.status_every == 0:
                 for r in self.robots:
                     r.server.publish_status()
             if (self.go_at is not None and self.results_sub is not None
-                    and self.trace is None):
+                    and self.trace is None and not self.message_hold.enabled):
                 self.results_sub.unregister()     # GO seen: no need to read every visit
                 self.results_sub = None
             pace = self.speedup if self.go_at is not None else self.speedup_before_go
@@ -292,28 +303,34 @@ class WorldNode:
         """Stop the clock while a robot that arrived ``hold_after`` sim s ago has no new goal
         yet, for at most ``hold_limit`` wall s per arrival (after that the robot is taken to
         be waiting on purpose: an auction, an algorithm's pause). Returns True if it held."""
+        start = None
+        with self.lock:
+            while not self.rospy.is_shutdown():
+                now = time.monotonic()
+                deadline = reaction_deadline(self.robots, self.world.time - self.hold_after + EPS,
+                                             self.hold_limit, self.reaction, now)
+                if deadline is None:
+                    break
+                start = now if start is None else start
+                self.traffic.wait(max(0.0, deadline - now))
+        if start is not None:
+            self.reaction.wall += time.monotonic() - start
+        return start is not None
+
+    def _hold_for_messages(self):
+        """Stop the clock while the agents' traffic is not quiet yet (clock_hold.MessageHold);
+        returns True if it held."""
+        if not self.message_hold.enabled:
+            return False
         held = False
         with self.lock:
             while not self.rospy.is_shutdown():
                 now = time.monotonic()
-                waiting = [r for r in self.robots if r.done_at is not None and not r.released
-                           and self.world.time >= r.done_at + self.hold_after - EPS]
-                if not waiting:
+                until = self.message_hold.wait_until(now)
+                if until is None:
                     return held
-                deadline = None
-                for r in waiting:
-                    if r.hold_since is None:
-                        r.hold_since = now
-                        self.holds += 1
-                    if now - r.hold_since >= self.hold_limit:
-                        r.released = True
-                        self.releases += 1
-                    else:
-                        end = r.hold_since + self.hold_limit
-                        deadline = end if deadline is None else min(deadline, end)
-                if deadline is not None:
-                    held = True
-                    self.goal_arrived.wait(max(0.0, deadline - now))
+                held = True
+                self.traffic.wait(max(0.0, until - now))
         return held
 
     def _publish_odometry(self, stamp):
@@ -341,17 +358,22 @@ class WorldNode:
                     go=self.go_at is not None, go_at=self.go_at,
                     goals=[r.goals for r in self.robots],
                     succeeded=[r.succeeded for r in self.robots],
-                    preempted=[r.preempted for r in self.robots])
+                    preempted=[r.preempted for r in self.robots],
+                    **totals({"reaction": self.reaction, "message": self.message_hold.counter}))
 
     def log_summary(self):
         if self.trace is not None:
-            print("abstract_world: " + round_trip_summary(self.trace), flush=True)
+            print("abstract_world: " + self.trace.summary(), flush=True)
         turn = [x for r in self.robots for x in r.turnaround]
         s = self.status(0.0)
         line = (f"abstract_world: end at sim {s['sim_time']:.2f} s, GO at {s['go_at']}; goals "
                 f"{s['goals']} succeeded {s['succeeded']} preempted {s['preempted']}; clock "
-                f"held for a reaction {self.holds} times, {self.releases} of them given up "
-                f"after {self.hold_limit:g} wall s")
+                f"held for a reaction {self.reaction.holds} times, {self.reaction.timeouts} of "
+                f"them given up after {self.hold_limit:g} wall s, {self.reaction.wall:.2f} wall "
+                f"s in all; for messages {self.message_hold.counter.holds} times, "
+                f"{self.message_hold.counter.timeouts} timed out after "
+                f"{self.message_hold.limit:g} wall s, {self.message_hold.counter.wall:.2f} wall "
+                f"s in all")
         if turn:
             line += (f"; turnaround SUCCEEDED->next goal (sim s): n {len(turn)} mean "
                      f"{statistics.mean(turn):.3f} median {statistics.median(turn):.3f} "

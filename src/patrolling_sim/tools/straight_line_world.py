@@ -19,15 +19,18 @@ class StraightLineWorld:
         self.pos = [[float(x), float(y)] for x, y in positions]
         self.yaw = [math.pi / 2] * len(self.pos)
         self.goal = [None] * len(self.pos)
+        self.start = [0.0] * len(self.pos)     # sim time before which a robot stays put
         self.steps = 0
 
     @property
     def time(self):
         return self.steps * self.step_length
 
-    def set_goal(self, i, x, y):
-        """Robot ``i`` heads for (x, y) from where it is now, from the next step on."""
+    def set_goal(self, i, x, y, start=0.0):
+        """Robot ``i`` heads for (x, y) from where it is now, from the next step on, or if
+        later from the first step that begins at or after sim time ``start``."""
         self.goal[i] = (float(x), float(y))
+        self.start[i] = float(start)
 
     def stop(self, i):
         """Robot ``i`` stays where it is."""
@@ -39,11 +42,12 @@ class StraightLineWorld:
     def advance(self):
         """One step of motion; returns the robots that reached their goal in this step
         (they stop there)."""
+        began = self.time
         self.steps += 1
         reach = self.speed * self.step_length
         arrived = []
         for i, g in enumerate(self.goal):
-            if g is None:
+            if g is None or self.start[i] > began + EPS:
                 continue
             p = self.pos[i]
             dx, dy = g[0] - p[0], g[1] - p[1]

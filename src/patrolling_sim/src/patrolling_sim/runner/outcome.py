@@ -125,6 +125,29 @@ def timing(info, watcher, go_wall, wall):
     return sim, real, pace
 
 
+#: status fields of the clock holds, by record field: the abstract world's names first, then
+#: the Box2D simulator's (steps that waited for the controllers' commands, waits that timed
+#: out)
+CLOCK_FIELDS = {"holds": ("clock_holds", "sync_waits"),
+                "hold_timeouts": ("hold_timeouts", "sync_timeouts"),
+                "held_wall": ("held_wall",)}
+
+
+def clock_record(status, requested, achieved):
+    """The run record's ``clock``: the pace requested (``--speedup``) and achieved (sim /
+    wall s since GO), and from the simulator's last status (``status``, a dict; empty if
+    none came) how often it held the clock to wait for the agents, how many of those waits
+    reached their bound, the wall s held and the per-reason figures; a figure the simulator
+    does not report is None."""
+    rec = {"pace_requested": requested,
+           "pace_achieved": round(achieved, 2) if achieved else None}
+    for field_name, keys in CLOCK_FIELDS.items():
+        rec[field_name] = next((status[k] for k in keys if k in status), None)
+    if isinstance(status.get("hold_reasons"), dict):
+        rec["reasons"] = status["hold_reasons"]
+    return rec
+
+
 def missing_files(prefix):
     """Names of the result files the run did not write."""
     return [f"{os.path.basename(prefix)}_{s}" for s in RESULT_SUFFIXES

@@ -37,9 +37,9 @@ from dataclasses import dataclass
 from patrolling_sim.monitor import run_status as rs
 from patrolling_sim.monitor.results import claim_prefix as _claim, default_prefix
 from patrolling_sim.runner.launchgen import generate_launch, status_topic
-from patrolling_sim.runner.outcome import (RESULT_SUFFIXES, Outcome, decide_status, late_crash,
-                                           missing_files, no_space_record, read_info, signal_name,
-                                           summary, timing)
+from patrolling_sim.runner.outcome import (RESULT_SUFFIXES, Outcome, clock_record, decide_status,
+                                           late_crash, missing_files, no_space_record, read_info,
+                                           signal_name, summary, timing)
 from patrolling_sim.runner.proctree import ProcessTree
 from patrolling_sim.runner.roslaunch_log import RoslaunchLog, is_monitor
 from patrolling_sim.runner.rosenv import experiment_env, free_port
@@ -362,6 +362,7 @@ class Experiment:
         if info is not None:
             rs.set_info_status(self.prefix, status)
         sim, _, pace = timing(info, run.watcher, run.go_wall, wall)
+        last_status = getattr(run.watcher, "status", None) or {}
         record.update(
             sim_time=round(sim, 1) if sim is not None else 0.0,
             wall_time=round(wall, 1), go_after=round(run.go_wall, 1)
@@ -370,7 +371,7 @@ class Experiment:
             missing_files=missing,
             requested={"timeout": cfg.timeout, "cycles": cfg.cycles,
                        "dead_robot_timeout": cfg.dead_robot_timeout},
-            written_by="runner")
+            clock=clock_record(last_status, cfg.speedup, pace), written_by="runner")
         try:
             rs.write_run_yaml(self.prefix, record)
         except OSError as e:

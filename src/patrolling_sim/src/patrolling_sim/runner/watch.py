@@ -75,6 +75,7 @@ class RosWatcher:
         self.rospy = rospy
         self.sim_time = 0.0
         self.rtf = None
+        self.status = {}            # the simulator's last status (JSON object)
         self.go = False
         self.sim_at_go = None
         self.end = False
@@ -92,6 +93,7 @@ class RosWatcher:
             st = json.loads(msg.data)
             self.sim_time = float(st["sim_time"])
             self.rtf = float(st["rtf"])
+            self.status = st
         except (ValueError, KeyError, TypeError):
             pass
 

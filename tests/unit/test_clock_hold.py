@@ -1,0 +1,147 @@
+"""The abstract world's clock holds (src/patrolling_sim/tools/clock_hold.py, pure logic with
+wall times passed in) and the run record's ``clock`` (runner.outcome.clock_record)."""
+import os
+import sys
+from types import SimpleNamespace
+
+import pytest
+
+from patrolling_sim.common.protocol import MSG_DTA_IDLENESS, MSG_SSI_BID, MSG_SSI_TASK_REQUEST
+from patrolling_sim.runner.outcome import clock_record
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "tools"))
+from clock_hold import (HoldCounter, MessageHold, awaited_answer, reaction_deadline,  # noqa
+                        totals)
+
+
+def hold(team=4):
+    return MessageHold(quiet=0.005, answer_quiet=0.02, limit=0.1, team_size=team)
+
+
+def test_no_traffic_no_hold():
+    h = hold()
+    assert h.wait_until(1.0) is None and h.counter.holds == 0
+
+
+def test_a_message_holds_until_quiet():
+    h = hold()
+    h.note(1.000, [2, MSG_DTA_IDLENESS, 5, 5, 1])
+    assert h.wait_until(1.001) == pytest.approx(1.005)
+    h.note(1.003, [1, MSG_DTA_IDLENESS, 5, 5, 2])        # more traffic: the quiet restarts
+    assert h.wait_until(1.004) == pytest.approx(1.008)
+    assert h.wait_until(1.008) is None
+    assert h.counter.as_dict() == {"holds": 1, "timeouts": 0, "wall": 0.007}
+    assert h.wait_until(1.009) is None and h.counter.holds == 1
+
+
+def test_a_goal_is_traffic():
+    h = hold()
+    h.note(2.0)
+    assert h.wait_until(2.001) == pytest.approx(2.005)
+
+
+def test_a_task_request_waits_for_every_teammates_bid():
+    h = hold(team=3)
+    h.note(1.000, [0, MSG_SSI_TASK_REQUEST, 7, 300])
+    assert h.wait_until(1.010) == pytest.approx(1.020)   # the longer quiet: answers due
+    h.note(1.011, [1, MSG_SSI_BID, 7, 200])
+    assert h.wait_until(1.012) == pytest.approx(1.031)
+    h.note(1.013, [2, MSG_SSI_BID, 7, 100])              # every teammate answered
+    assert h.wait_until(1.014) == pytest.approx(1.018)   # the short quiet again
+    assert h.wait_until(1.018) is None
+
+
+def test_silence_ends_the_wait_for_bids():
+    h = hold()
+    h.note(1.000, [0, MSG_SSI_TASK_REQUEST, 7, 300])
+    h.note(1.002, [3, MSG_SSI_BID, 7, 100])              # robots 1 and 2 stay silent
+    assert h.wait_until(1.003) == pytest.approx(1.022)
+    assert h.wait_until(1.022) is None
+    h.note(2.000, [2, MSG_DTA_IDLENESS, 1])              # the request is forgotten
+    assert h.wait_until(2.001) == pytest.approx(2.005)
+
+
+def test_a_hold_is_bounded_and_counted_as_timed_out():
+    h = hold()
+    t = 1.0
+    h.note(t, [0, MSG_DTA_IDLENESS, 1])
+    assert h.wait_until(t) is not None
+    while t < 1.1:                                       # a chatty agent: never quiet
+        t += 0.004
+        h.note(t, [0, MSG_DTA_IDLENESS, 1])
+        until = h.wait_until(t)
+        if until is None:
+            break
+        assert until <= 1.1 + 1e-9
+    assert until is None and t == pytest.approx(1.1, abs=0.005)
+    assert h.counter.holds == 1 and h.counter.timeouts == 1
+    assert h.wait_until(t + 0.001) is None               # the traffic so far is done with
+    h.note(t + 0.002, [1, MSG_DTA_IDLENESS, 1])          # new traffic: a new hold
+    assert h.wait_until(t + 0.003) is not None and h.counter.holds == 2
+
+
+def test_limit_zero_never_holds():
+    h = MessageHold(0.005, 0.02, 0.0, 4)
+    h.note(1.0, [0, MSG_SSI_TASK_REQUEST, 7, 300])
+    assert not h.enabled and h.wait_until(1.0) is None and h.counter.holds == 0
+    with pytest.raises(ValueError):
+        MessageHold(-1.0, 0.02, 0.1, 4)
+
+
+def test_awaited_answer():
+    assert awaited_answer([2, MSG_SSI_TASK_REQUEST, 7, 300]) == (MSG_SSI_BID, 7)
+    assert awaited_answer([2, MSG_SSI_BID, 7, 300]) is None
+    assert awaited_answer([-1, MSG_SSI_TASK_REQUEST, 7, 300]) is None   # not an agent's
+
+
+def robot(done_at=None):
+    return SimpleNamespace(done_at=done_at, hold_since=None, released=False)
+
+
+def test_reaction_deadline_waits_then_releases():
+    c = HoldCounter()
+    robots = [robot(), robot(done_at=5.0), robot(done_at=5.5)]
+    # sim 5.0 + reaction 0.08 reached by robot 1 only
+    assert reaction_deadline(robots, 5.08, 0.05, c, now=10.0) == pytest.approx(10.05)
+    assert c.holds == 1 and robots[1].hold_since == 10.0
+    assert reaction_deadline(robots, 5.08, 0.05, c, now=10.02) == pytest.approx(10.05)
+    assert c.holds == 1
+    assert reaction_deadline(robots, 5.08, 0.05, c, now=10.05) is None
+    assert robots[1].released and c.timeouts == 1
+    assert reaction_deadline(robots, 5.08, 0.05, c, now=10.06) is None
+
+
+def test_totals_sum_the_reasons():
+    r, m = HoldCounter(3, 1, 0.25), HoldCounter(10, 0, 0.5)
+    t = totals({"reaction": r, "message": m})
+    assert (t["clock_holds"], t["hold_timeouts"], t["held_wall"]) == (13, 1, 0.75)
+    assert t["hold_reasons"]["message"] == {"holds": 10, "timeouts": 0, "wall": 0.5}
+
+
+def test_clock_record_from_either_simulator():
+    abstract = {"sim_time": 300.0, "rtf": 19.5, "clock_holds": 13, "hold_timeouts": 1,
+                "held_wall": 0.75, "hold_reasons": {"message": {"holds": 10}}}
+    rec = clock_record(abstract, 20.0, 19.456)
+    assert rec == {"pace_requested": 20.0, "pace_achieved": 19.46, "holds": 13,
+                   "hold_timeouts": 1, "held_wall": 0.75,
+                   "reasons": {"message": {"holds": 10}}}
+    stage = {"sim_time": 300.0, "rtf": 3.9, "sync_waits": 42, "sync_timeouts": 2}
+    rec = clock_record(stage, 4.0, 3.9)
+    assert (rec["holds"], rec["hold_timeouts"], rec["held_wall"]) == (42, 2, None)
+    assert "reasons" not in rec
+    assert clock_record({}, 1.0, None) == {"pace_requested": 1.0, "pace_achieved": None,
+                                           "holds": None, "hold_timeouts": None,
+                                           "held_wall": None}
+
+
+def test_auction_trace_measures_the_next_rounds_lag():
+    from clock_hold import AuctionTrace
+    t = AuctionTrace()
+    t.note([0, MSG_SSI_TASK_REQUEST, 3, 100], 10.0, 1.0)
+    t.note([0, MSG_SSI_TASK_REQUEST, 4, 100], 11.04, 1.1)    # 1.0 s auction, 0.04 s late
+    t.note([0, MSG_SSI_TASK_REQUEST, 5, 100], 12.24, 1.2)    # 1.2 s auction, on time
+    t.note([0, MSG_SSI_TASK_REQUEST, 6, 100], 30.0, 2.0)     # a later auction: not a round
+    t.note([0, MSG_SSI_BID, 6, 50], 30.0, 2.001)
+    assert t.lags == [pytest.approx(0.04), pytest.approx(0.0)]
+    assert "n 2 median 0.040 max 0.040" in t.summary()
