@@ -3,7 +3,9 @@
 decisions per second on one core, and the time per decision against a plain graph-mode run
 of the same length, side by side in one process.
 
-For each map and team size it runs, ``--repeat`` times each and keeping the fastest:
+For each map and team size it runs, ``--repeat`` times each, alternating (environment,
+plain, environment, ...: a change of the machine's load hits both alike), and keeps the
+fastest of each:
 
 - the environment (``PatrolParallelEnv``, flat observations, neighbour actions, reward
   ``visit``) for ``--duration`` simulated s with a random policy over the valid actions (a
@@ -72,9 +74,15 @@ def plain_run(map_name, robots, duration, seed):
     return cpu, sum(c + 1 for c in sim.monitor.visits)
 
 
-def best(fn, repeat, *args):
-    runs = [fn(*args) for _ in range(repeat)]
-    return min(runs, key=lambda r: r[0] / max(r[1], 1))
+def best_pair(repeat, *args):
+    """The fastest environment run and the fastest plain run of ``repeat`` alternated pairs
+    (``args``: map, robots, duration, seed)."""
+    env, plain = [], []
+    for _ in range(repeat):
+        env.append(env_run(*args))
+        plain.append(plain_run(*args))
+    return (min(env, key=lambda r: r[0] / max(r[1], 1)),
+            min(plain, key=lambda r: r[0] / max(r[1], 1)))
 
 
 def main():
@@ -92,8 +100,7 @@ def main():
     print("|---|---|---|---|---|---|---|")
     for m in a.maps:
         for n in a.robots:
-            ecpu, edec = best(env_run, a.repeat, m, n, a.duration, a.seed)
-            pcpu, pdec = best(plain_run, a.repeat, m, n, a.duration, a.seed)
+            (ecpu, edec), (pcpu, pdec) = best_pair(a.repeat, m, n, a.duration, a.seed)
             e_us, p_us = 1e6 * ecpu / edec, 1e6 * pcpu / pdec
             print(f"| {m} | {n} | {edec} | {edec / ecpu:,.0f} | {e_us:.0f} | {p_us:.0f} "
                   f"| {e_us / p_us:.2f} |", flush=True)

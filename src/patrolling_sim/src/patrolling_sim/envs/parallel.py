@@ -158,9 +158,13 @@ class PatrolParallelEnv(ParallelEnv):
                                   start_vertices=starts, pgraph=pg, strategy_class=EnvStrategy)
         self.map_path = map_path
         self.agents = list(self.possible_agents)
+        self._live = list(enumerate(self.agents))     # (id, agent) of self.agents
+        self._masks = (self.tab.mask_neighbour_rows if self.opt.action == "neighbour"
+                       else self.tab.mask_goal_rows)
         self.sim.begin()
+        self._cores = [r.core for r in self.sim.robots]
         self._t_prev = 0.0
-        self._over = self.sim.advance(self.board.has_pending)
+        self._over = self.sim.advance(self.board.pending.__len__)
         self._ready = self._take_ready()
         self.final_stats = None
         self._prev_avg = team_reward("avg_idleness_delta", self.sim.monitor.last_visit,
@@ -169,10 +173,9 @@ class PatrolParallelEnv(ParallelEnv):
 
     # -- stepping -------------------------------------------------------------------------
     def _take_ready(self):
-        b = self.board
-        ready = [i for i in dict.fromkeys(b.pending)
-                 if not self.sim.robots[i].core.failed]
-        b.pending.clear()
+        pending, cores = self.board.pending, self._cores
+        ready = [i for i in dict.fromkeys(pending) if not cores[i].failed]
+        pending.clear()
         return ready
 
     def _goal_of(self, i, a):
@@ -181,21 +184,22 @@ class PatrolParallelEnv(ParallelEnv):
         cur = int(self.board.current[i])
         a = int(a)
         if self.opt.action == "neighbour":
-            deg = int(self.tab.degree[cur])
-            return cur if deg == 0 else int(self.tab.nbr[cur, a % deg])
+            nbrs = self.tab.nbr_lists[cur]
+            return nbrs[a % len(nbrs)] if nbrs else cur
         return a % self.n_vertices
 
     def _apply(self, actions):
         """Apply the ready robots' actions; returns {robot: visit reward}."""
         gained = {}
         mon, t = self.sim.monitor, self.sim.t
+        agents, current, cores = self.possible_agents, self.board.current, self._cores
         for i in self._ready:
-            a = actions.get(self.possible_agents[i])
+            a = actions.get(agents[i])
             if a is None:
                 continue                    # not decided: the life cycle asks again in 0.5 s
             v = self._goal_of(i, a)
-            core = self.sim.robots[i].core
-            cur = int(self.board.current[i])
+            core = cores[i]
+            cur = int(current[i])
             before = mon.last_visit[cur]
             core.strategy.next = v
             core.redirect(v)
@@ -207,36 +211,46 @@ class PatrolParallelEnv(ParallelEnv):
         if not self.agents:
             raise PatrolInputError("step() after the episode ended: call reset()")
         gained = self._apply(actions)
-        self._over = self.sim.advance(self.board.has_pending)
+        over = self._over = self.sim.advance(self.board.pending.__len__)
         self._ready = self._take_ready()
         t = self.sim.t
         dt, self._t_prev = t - self._t_prev, t
-        if self._over:
+        if over:
             self.final_stats = self.sim.finish()
         team, self._prev_avg = team_reward(self.opt.reward, self.sim.monitor.last_visit, t,
                                            dt, self._prev_avg, self.tab.T)
-        rewards, terms, truncs = {}, {}, {}
-        for a in self.agents:
-            i = self.agent_ids[a]
-            rewards[a] = float(team + (gained.get(i, 0.0) if self.opt.reward == "visit" else 0))
-            terms[a] = bool(self.sim.robots[i].core.failed)
-            truncs[a] = bool(self._over) and not terms[a]
+        visit, cores, over, agents = self.opt.reward == "visit", self._cores, bool(over), \
+            self.agents
+        rewards = dict.fromkeys(agents, float(team + (0.0 if visit else 0)))
+        if visit:
+            for i, g in gained.items():              # ready robots: all in the episode
+                rewards[self.possible_agents[i]] = float(team + g)
+        terms = dict.fromkeys(agents, False)
+        truncs = dict.fromkeys(agents, over)
+        failed = [a for i, a in self._live if cores[i].failed]
+        for a in failed:
+            terms[a], truncs[a] = True, False
         obs = self._observations()
         infos = self._infos(dt)
-        self.agents = [a for a in self.agents if not (terms[a] or truncs[a])]
+        if failed or over:
+            self._live = [(i, a) for i, a in self._live if not (terms[a] or truncs[a])]
+            self.agents = [a for _, a in self._live]
         return obs, rewards, terms, truncs, infos
 
     # -- observations, infos, state -------------------------------------------------------
     def _ready_vector(self):
-        ready = self._ready
-        return [1.0 if i in ready else 0.0 for i in range(self.opt.robots)]
+        out = [0.0] * self.opt.robots
+        for i in self._ready:
+            out[i] = 1.0
+        return out
 
     def _observations(self):
         b, t = self.board, self.sim.t
         if self.flat is not None:
             m = self.flat.observe(t, self._ready_vector())
-            ids = self.agent_ids
-            return {a: m[ids[a]] for a in self.agents}
+            if len(self._live) == len(m):
+                return dict(zip(self.agents, m))
+            return {a: m[i] for i, a in self._live}
         if self.slot_tables is not None:
             ids = [self.agent_ids[a] for a in self.agents]
             if not ids:
@@ -252,18 +266,18 @@ class PatrolParallelEnv(ParallelEnv):
     def action_mask(self, i):
         """int8 mask of robot ``i``'s valid actions from the vertex it last reached (a row of
         a table shared by every step: read it, do not change it)."""
-        cur = self.board.current[i]
-        if self.opt.action == "neighbour":
-            return self.tab.mask_neighbour[cur]
-        return self.tab.mask_goal[cur]
+        return self._masks[self.board.current[i]]
 
-    def metrics(self):
+    def metrics(self, avg=None):
         """The monitor's figures now: instantaneous average and worst idleness (s), visits,
         complete patrol cycles, interferences; ``stats`` (the monitor's final statistics,
-        as a graph-mode run's info.csv has them) once the episode is over."""
+        as a graph-mode run's info.csv has them) once the episode is over. ``avg``: the
+        average idleness now, if the caller has it."""
         mon, t = self.sim.monitor, self.sim.t
         lv = mon.last_visit
-        out = {"time": t, "avg_idleness": t - sum(lv) / len(lv), "max_idleness": t - min(lv),
+        if avg is None:
+            avg = t - sum(lv) / len(lv)
+        out = {"time": t, "avg_idleness": avg, "max_idleness": t - min(lv),
                "visits": mon.n_samples, "cycles": mon.cycles,
                "interferences": mon.interferences}
         if self._over and getattr(self, "final_stats", None) is not None:
@@ -274,13 +288,12 @@ class PatrolParallelEnv(ParallelEnv):
 
     def _infos(self, dt):
         t = self.sim.t
-        metrics = self.metrics()
+        metrics = self.metrics(self._prev_avg)
         ready = self._ready
-        ids = self.agent_ids
-        return {a: {"ready": ids[a] in ready, "dt": dt, "time": t,
-                    "vertex": self.board.current[ids[a]],
-                    "action_mask": self.action_mask(ids[a]), "metrics": metrics}
-                for a in self.agents}
+        current, masks = self.board.current, self._masks
+        return {a: {"ready": i in ready, "dt": dt, "time": t, "vertex": current[i],
+                    "action_mask": masks[current[i]], "metrics": metrics}
+                for i, a in self._live}
 
     def state(self):
         """The global state for centralised critics (observe.state_vector)."""

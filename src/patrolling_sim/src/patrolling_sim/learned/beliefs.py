@@ -22,6 +22,8 @@ class TeamBeliefs:
 
     def __init__(self, robots: int, n_vertices: int, start_vertices=None):
         self.last_visit = np.zeros((robots, n_vertices))
+        # each row as a memoryview: scalar reads and writes without numpy's per-call cost
+        self._lv = [memoryview(row) for row in self.last_visit]
         if start_vertices is None:
             starts = [-1] * robots
         else:
@@ -30,7 +32,8 @@ class TeamBeliefs:
         self.mate_next = [list(starts) for _ in range(robots)]
         self.mate_time = [[0.0] * robots for _ in range(robots)]
         self.current = list(starts)
-        #: told of every belief change (an incremental observation builder), or None
+        #: told of every belief change (an incremental observation builder, with the
+        #: methods ``rebuild(i)`` and ``news(i, j, v, nxt, now, fresher)``), or None
         self.listener = None
 
     def start(self, i: int, v: int) -> None:
@@ -50,14 +53,15 @@ class TeamBeliefs:
             self.listener.rebuild(i)
 
     def news(self, i: int, j: int, v: int, nxt: int, now: float) -> None:
-        """Robot ``i`` heard at ``now`` that teammate ``j`` reached ``v``, heading to ``nxt``."""
-        listener = self.listener
-        if now > self.last_visit[i, v]:
-            self.last_visit[i, v] = now
-            if listener is not None:
-                listener.belief(i, v, now)
+        """Robot ``i`` heard at ``now`` that teammate ``j`` reached ``v``, heading to ``nxt``
+        (the listener is told with ``fresher``: whether the believed visit time of v
+        changed)."""
+        row = self._lv[i]
+        fresher = now > row[v]
+        if fresher:
+            row[v] = now
         self.mate_vertex[i][j] = v
         self.mate_next[i][j] = nxt
         self.mate_time[i][j] = now
-        if listener is not None:
-            listener.news(i, j, v, nxt, now)
+        if self.listener is not None:
+            self.listener.news(i, j, v, nxt, now, fresher)

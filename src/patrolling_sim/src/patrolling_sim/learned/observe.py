@@ -60,6 +60,11 @@ class GraphTables:
         self.reachable = np.isfinite(np.asarray(g.dist))
         self.mask_neighbour = self.valid.astype(np.int8)
         self.mask_goal = self.reachable.astype(np.int8)
+        #: the rows of the two masks (one view each, handed out as they are)
+        self.mask_neighbour_rows = list(self.mask_neighbour)
+        self.mask_goal_rows = list(self.mask_goal)
+        #: each vertex's neighbours in the graph file's order (plain lists)
+        self.nbr_lists = [[int(w) for w in g.neighbor_ids(v)] for v in range(g.n)]
         # constant parts of the flat observation, gathered by vertex
         self.own_xy = self.pos / self.S
         self.offset = (self.pos[None, :, :] - self.pos[:, None, :]) / self.S   # [a, b]: b - a
@@ -117,9 +122,11 @@ class FlatObservations:
     """The flat observations of every robot, kept up to date event by event: ``base`` and
     ``coef`` (N, F) with observation = ``base + now * coef`` (every time-dependent feature
     is ``(now - t_event) / T``: ``base`` holds ``-t_event / T``, ``coef`` ``1 / T``). The
-    board calls :meth:`rebuild` when a robot reached a vertex, :meth:`belief` when a
-    believed visit time changed, :meth:`news` when a teammate's report was delivered; a
-    step then costs a few array operations whatever the team size."""
+    board calls :meth:`rebuild` when a robot reached a vertex and :meth:`news` when a
+    teammate's report was delivered (with whether a believed visit time changed); a
+    step then costs a few array operations whatever the team size. At these sizes one
+    numpy call costs more than a few scalar writes: the per-event work is plain Python,
+    reading and writing single values through memoryviews of the rows."""
 
     def __init__(self, tab: GraphTables, board, goal: bool):
         N = board.last_visit.shape[0]
@@ -127,6 +134,13 @@ class FlatObservations:
         F = tab.flat_size(N, goal)
         self.base = np.zeros((N, F))
         self.coef = np.zeros((N, F))
+        self._buf = np.empty((N, F))
+        self.base_rows = list(self.base)              # row views, one per robot
+        self.base_mv = [memoryview(row) for row in self.base_rows]
+        self.coef_rows = list(self.coef)
+        self.lv_rows = list(board.last_visit)
+        self.lv_mv = [memoryview(row) for row in self.lv_rows]
+        self.inv_t = -1.0 / tab.T
         self.mate0 = 3 + SLOT_FEATURES * tab.D
         self.goal0 = self.mate0 + TEAMMATE_FEATURES * (N - 1)
         self.others = tab.others(N)
@@ -142,22 +156,20 @@ class FlatObservations:
             self.rebuild(i)
 
     def rebuild(self, i: int) -> None:
-        """Robot ``i``'s row from scratch (its vertex changed). Small loops in plain Python:
-        at these sizes a numpy call costs more than the work."""
+        """Robot ``i``'s row from scratch (its vertex changed)."""
         tab, b = self.tab, self.board
         cur = int(b.current[i])
-        row = self.base[i]
+        row = self.base_rows[i]
         m0, g0 = self.mate0, self.goal0
         row[0:m0] = tab.static_row[cur]
-        self.coef[i, 0:m0] = tab.coef_row[cur]
-        deg = int(tab.degree[cur])
-        if deg:
-            row[4:4 + SLOT_FEATURES * deg:SLOT_FEATURES] = \
-                b.last_visit[i, tab.nbr[cur, :deg]] * (-1.0 / tab.T)
-        self.slot_col[i] = tab.slot_cols[cur]
+        self.coef_rows[i][0:m0] = tab.coef_row[cur]
+        inv_t = self.inv_t
+        lvm, rowm = self.lv_mv[i], self.base_mv[i]
+        cols = self.slot_col[i] = tab.slot_cols[cur]
+        for w, col in cols.items():
+            rowm[col] = lvm[w] * inv_t
         off = tab.offset_list[cur]
         mv, mn, mt = b.mate_vertex[i], b.mate_next[i], b.mate_time[i]
-        inv_t = -1.0 / tab.T
         vals = []
         for j in self.others_list[i]:
             vals += off[mv[j]]
@@ -166,30 +178,33 @@ class FlatObservations:
         row[m0:g0] = vals
         if self.goal:
             V = tab.n
-            row[g0:g0 + V] = b.last_visit[i] * inv_t
+            row[g0:g0 + V] = self.lv_rows[i] * inv_t
             row[g0 + V:] = 0.0
             row[g0 + V + cur] = 1.0
 
-    def belief(self, i: int, v: int, t: float) -> None:
-        """Robot ``i`` now believes vertex ``v`` was visited at ``t``."""
-        col = self.slot_col[i].get(v)
-        if col is not None:
-            self.base[i, col] = -t / self.tab.T
-        if self.goal:
-            self.base[i, self.goal0 + v] = -t / self.tab.T
-
-    def news(self, i: int, j: int, v: int, nxt: int, t: float) -> None:
-        """Robot ``i`` heard at ``t`` that teammate ``j`` reached ``v`` and heads to ``nxt``."""
+    def news(self, i: int, j: int, v: int, nxt: int, t: float, fresher: bool) -> None:
+        """Robot ``i`` heard at ``t`` that teammate ``j`` reached ``v`` and heads to ``nxt``;
+        ``fresher``: i now believes v was visited at ``t``."""
+        row = self.base_mv[i]
+        value = -t / self.tab.T
+        if fresher:
+            col = self.slot_col[i].get(v)
+            if col is not None:
+                row[col] = value
+            if self.goal:
+                row[self.goal0 + v] = value
         col = self.mate_col[i][j]
         off = self.tab.offset_list[self.board.current[i]]
-        base = self.base
-        base[i, col], base[i, col + 1] = off[v]
-        base[i, col + 2], base[i, col + 3] = off[nxt]
-        base[i, col + 4] = -t / self.tab.T
+        row[col], row[col + 1] = off[v]
+        row[col + 2], row[col + 3] = off[nxt]
+        row[col + 4] = value
 
     def observe(self, now: float, ready) -> np.ndarray:
         """(N, F) float32 observations at ``now``; ``ready``: N floats (1: must decide)."""
-        out = (self.base + now * self.coef).astype(np.float32)
+        buf = self._buf
+        np.multiply(self.coef, now, out=buf)
+        buf += self.base                 # base + now * coef, the same sum either way round
+        out = buf.astype(np.float32)
         out[:, 2] = ready
         return out
 
