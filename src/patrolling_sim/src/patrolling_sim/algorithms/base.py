@@ -111,6 +111,14 @@ class PatrolStrategy:
         graph mode, the ROS runner and campaigns call it when they validate a run's
         configuration. Raises PatrolInputError with one line. Default: nothing to check."""
 
+    @classmethod
+    def content_params(cls, params: Dict[str, Any]) -> Dict[str, str]:
+        """The files the algorithm reads, named by their content: {param: identity} for the
+        ``params`` (checked by :meth:`check_params`) that name files, e.g. a policy file's
+        ``stem@sha8``. Campaigns key a run with these identities instead of the paths, so
+        a changed file at the same path makes a new run. Default: none ({})."""
+        return {}
+
     def __init__(self, ctx: StrategyContext):
         self.ctx = ctx
         self.graph = ctx.graph

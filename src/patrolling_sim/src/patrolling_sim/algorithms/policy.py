@@ -17,7 +17,7 @@ from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.common.protocol import MSG_LEARNED_VISIT
 from patrolling_sim.learned.beliefs import TeamBeliefs
 from patrolling_sim.learned.observe import GraphTables
-from patrolling_sim.learned.policyfile import load_policy
+from patrolling_sim.learned.policyfile import file_label, load_policy
 from patrolling_sim.learned.slots import SlotTables, slot_features
 
 MODES = ("greedy", "sample")
@@ -55,6 +55,11 @@ class LearnedPolicy(PatrolStrategy):
         if mode not in MODES:
             raise PatrolInputError(f"POLICY: policy_mode must be one of {', '.join(MODES)}, "
                                    f"got {mode!r}")
+
+    @classmethod
+    def content_params(cls, params):
+        """The policy file (given or the shipped default) by its label, ``stem@sha8``."""
+        return {"policy": file_label(policy_path(params))}
 
     def __init__(self, ctx):
         super().__init__(ctx)

@@ -18,14 +18,15 @@ The keys of ``fixed`` and ``grid`` are the fields of the mode's configuration
 either is available to campaigns at once. Every run is validated before anything starts.
 
 Every run has a stable *key*: a hash of its mode, its full configuration (defaults
-included) and the code version (git commit). The campaign folder keeps one state record per
-run (``state/<key>.yaml``); re-running the same command skips runs that ended normally
-(TIMEOUT, CYCLES, FAIL), redoes incomplete ones (interrupted, aborted, never finished) and,
-with ``retry_failed``, crashed ones. Results travel back through Dask (no shared file
-system) and only the client writes files: the usual result files in the usual tree under
-``results/``, plus ``<prefix>_visits.csv`` and ``<prefix>_metrics.yaml``
-(:mod:`patrolling_sim.monitor.metrics`), and ``runs.csv``, one row per run. See
-``docs/campaigns.md``.
+included; a file its algorithm reads, as POLICY's policy file, by its content:
+:func:`~patrolling_sim.campaign.spec.keyed_config`) and the code version (git commit). The
+campaign folder keeps one state record per run (``state/<key>.yaml``); re-running the same
+command skips runs that ended normally (TIMEOUT, CYCLES, FAIL), redoes incomplete ones
+(interrupted, aborted, never finished) and, with ``retry_failed``, crashed ones. Results
+travel back through Dask (no shared file system) and only the client writes files: the
+usual result files in the usual tree under ``results/``, plus ``<prefix>_visits.csv`` and
+``<prefix>_metrics.yaml`` (:mod:`patrolling_sim.monitor.metrics`), and ``runs.csv``, one
+row per run. See ``docs/campaigns.md``.
 
 The cluster (its start, its size, its workers' forkserver) is in
 :mod:`~patrolling_sim.campaign.cluster`, the ``campaign.py`` command line in

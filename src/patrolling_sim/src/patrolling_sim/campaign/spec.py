@@ -15,7 +15,8 @@ import yaml
 from patrolling_sim.campaign.run_warnings import RunWarnings
 from patrolling_sim.common import paths
 from patrolling_sim.common.errors import PatrolInputError
-from patrolling_sim.algorithms import names
+from patrolling_sim.algorithms import REGISTRY, names
+from patrolling_sim.experiment.validation import strategy_params
 from patrolling_sim.graphsim.config import GraphSimConfig
 from patrolling_sim.runner.config import ExperimentConfig
 
@@ -113,9 +114,33 @@ def code_version(root: Optional[str] = None) -> Dict[str, object]:
 
 
 def run_key(mode: str, config: dict, commit: str) -> str:
-    blob = json.dumps({"mode": mode, "config": config, "code": commit}, sort_keys=True,
-                      default=str)
+    """The run's stable key: a hash of ``mode``, ``config`` (the files its algorithm reads
+    named by their content, :func:`keyed_config`) and ``commit``."""
+    blob = json.dumps({"mode": mode, "config": keyed_config(config), "code": commit},
+                      sort_keys=True, default=str)
     return hashlib.sha1(blob.encode()).hexdigest()[:16]
+
+
+def keyed_config(config: dict) -> dict:
+    """``config`` as run keys see it: the files its algorithm reads
+    (:meth:`~patrolling_sim.algorithms.base.PatrolStrategy.content_params`, e.g. POLICY's
+    policy file) replaced by their content's identity, at the top level when ``config`` has
+    the key (``policy``) and in ``params`` when they name it there. Other algorithms'
+    configurations are returned as they are (their keys do not change)."""
+    cls = REGISTRY.get(config.get("alg"))
+    if cls is None:
+        return config
+    ids = cls.content_params(strategy_params(config.get("params"), config.get("policy")))
+    if not ids:
+        return config
+    out = dict(config)
+    for k, v in ids.items():
+        if k in out:
+            out[k] = v
+        params = out.get("params") or {}
+        if k in params or k not in out:
+            out["params"] = dict(params, **{k: v})
+    return out
 
 
 def _read_file(path):

@@ -42,8 +42,7 @@ class Policy:
 
     def __init__(self, path, meta, weights, sha256):
         self.path, self.meta, self.weights, self.sha256 = path, meta, weights, sha256
-        stem = os.path.splitext(os.path.basename(path))[0]
-        self.label = f"{stem}@{sha256[:8]}"
+        self.label = file_label(path, sha256)
         self.act_fn = ACTIVATIONS[meta["activation"]]
         self.speed = float(meta.get("speed", 1.0))
 
@@ -86,6 +85,14 @@ def file_sha256(path) -> str:
         for chunk in iter(lambda: f.read(1 << 16), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+def file_label(path, sha256=None) -> str:
+    """The label of the file ``path``: ``<file stem>@<first 8 hex digits of its sha256>``
+    (``sha256``: the file's digest if the caller has it). It names the file's content: a
+    changed file gets a new label, a copy elsewhere under the same name the same one."""
+    stem = os.path.splitext(os.path.basename(path))[0]
+    return f"{stem}@{(sha256 or file_sha256(path))[:8]}"
 
 
 def save_policy(path, weights, meta) -> str:
