@@ -1,7 +1,9 @@
 """Tk launcher, like the original's "MRP Experiment Launcher".
 
 The window edits an :class:`ExperimentConfig` (map, team size, algorithm, localisation,
-navigation, goal wait, communication delay, speed-up, timeout), remembers the last one in
+navigation, goal wait, communication delay, speed-up, timeout, communication model,
+failures, and the policy file an algorithm such as POLICY reads: ``--policy``, typed or
+chosen with the "..." button, kept as an absolute path), remembers the last one in
 ``$PATROLLING_SIM_GUI_CONFIG`` (default ``~/.config/patrolling_sim/last_config.yaml``, the
 same YAML format as ``--config``), and runs the experiment as a headless child process
 (``start_experiments.py --headless --config FILE``) whose progress lines it shows live:
@@ -49,6 +51,8 @@ class LauncherApp:
                                             "range:r=10,los=true"]),
         ("attrition", "Failures", "combo", ["none", "1@300", "1@300+300",
                                             "random:rate=0.5,min_team=2"]),
+        # read by the algorithms that take a policy file (POLICY), ignored by the others
+        ("policy", "Policy file", "file", None),
     ]
 
     def __init__(self, root, script, initial=None):
@@ -73,7 +77,12 @@ class LauncherApp:
         for row, (key, label, kind, opts) in enumerate(self.FIELDS):
             ttk.Label(frm, text=label).grid(row=row, column=0, sticky="w", pady=2)
             var = tk.StringVar(value=self._fmt(getattr(cfg, key)))
-            w = ttk.Combobox(frm, textvariable=var, values=opts or choices[key], width=18)
+            if kind == "file":
+                w = ttk.Entry(frm, textvariable=var, width=20)
+                ttk.Button(frm, text="...", width=3,
+                           command=lambda k=key: self.choose_file(k)).grid(row=row, column=2)
+            else:
+                w = ttk.Combobox(frm, textvariable=var, values=opts or choices[key], width=18)
             w.grid(row=row, column=1, sticky="ew", pady=2)
             self.vars[key] = var
         row = len(self.FIELDS)
@@ -110,8 +119,22 @@ class LauncherApp:
         return ExperimentConfig(map="grid", robots=4, alg="CGG", loc="fake_localization",
                                 timeout=300.0, speedup=4.0)
 
+    def choose_file(self, key):
+        """A file chooser for field ``key`` (a policy file: ``.npz``)."""
+        from tkinter import filedialog
+        start = self.vars[key].get().strip()
+        start = os.path.abspath(os.path.expanduser(start)) if start else \
+            paths.policy_file("default")
+        path = filedialog.askopenfilename(
+            parent=self.root, title="Policy file", initialdir=os.path.dirname(start),
+            filetypes=[("policy files", "*.npz"), ("all files", "*")])
+        if path:
+            self.vars[key].set(path)
+
     def current_config(self):
         values = {k: v.get().strip() for k, v in self.vars.items()}
+        if values.get("policy"):       # the child and the remembered file need no cwd
+            values["policy"] = os.path.abspath(os.path.expanduser(values["policy"]))
         return self._load_last().updated(values, "GUI")
 
     def append(self, line):
