@@ -35,14 +35,13 @@ between a SUCCEEDED and the robot's next goal (the agents' turnaround).
 
 Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20),
 ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
-~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.05 wall s; 0 = never hold),
+~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.2 wall s; 0 = never hold),
 ~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off).
 
 Diagnostic: with ``PATROLLING_SIM_TRACE_AUCTIONS=1`` in its environment the node logs at
 shutdown the sim and wall s from each DTA task request (type 41) to each bid (type 42).
 """
 import json
-import math
 import os
 import statistics
 import sys
@@ -52,13 +51,14 @@ import time
 # the motion model lives beside this script (Python puts the script folder on sys.path)
 from straight_line_world import EPS, StraightLineWorld, read_positions
 from clock_hold import AuctionTrace, HoldCounter, MessageHold, reaction_deadline, totals
+from robot_server import RobotServer
 
 STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5 Hz)
 #: sim s from an arrival (plus /goal_reached_wait) to the next departure at the earliest, and
 #: then the clock waits for the goal: the reference runs' median turnaround (4 steps of 20 ms)
 REACTION_TIME = 0.08
 #: wall s the clock waits at most per arrival (then the agent is taken to wait on purpose)
-REACTION_WAIT = 0.05
+REACTION_WAIT = 0.2
 #: wall s of quiet after a message or goal before the clock moves on (delivery takes < 1 ms)
 MESSAGE_QUIET = 0.005
 #: wall s of quiet after a DTA task request, unless every teammate bid (x30 quiet: bids came
@@ -66,76 +66,6 @@ MESSAGE_QUIET = 0.005
 ANSWER_QUIET = 0.02
 #: wall s the clock waits at most per message hold (then it runs on and counts a time-out)
 MESSAGE_WAIT = 0.1
-
-
-class RobotServer:
-    """ROS interface of one robot: action server, clear_costmaps, odometry."""
-
-    def __init__(self, node, i):
-        import actionlib
-        import rospy
-        from move_base_msgs.msg import MoveBaseAction
-        from nav_msgs.msg import Odometry
-        from std_srvs.srv import Empty, EmptyResponse
-        self.node, self.i = node, i
-        self.gh = None                  # the goal being executed (owned under node.lock)
-        self.goals = self.succeeded = self.preempted = 0
-        self.done_at = None             # sim time of the last SUCCEEDED
-        self.hold_since = None          # wall time the clock started waiting for this robot
-        self.released = False           # waited long enough: no more holds until next goal
-        self.turnaround = []            # sim s from a SUCCEEDED to the next goal
-        ns = f"robot_{i}"
-        self.odom_pub = rospy.Publisher(f"{ns}/odom", Odometry, queue_size=1)
-        self.odom = Odometry()
-        self.odom.header.frame_id = f"{ns}/odom"
-        self.odom.child_frame_id = f"{ns}/base_link"
-        self.server = actionlib.ActionServer(f"{ns}/move_base", MoveBaseAction, self.on_goal,
-                                             self.on_cancel, auto_start=False)
-        self.srv = rospy.Service(f"{ns}/move_base/clear_costmaps", Empty,
-                                 lambda _req: EmptyResponse())
-
-    def on_goal(self, gh):
-        # called with the action server's lock held; takes node.lock after it (the stepping
-        # thread never holds node.lock while calling into a goal handle)
-        p = gh.get_goal().target_pose.pose.position
-        with self.node.lock:
-            old, self.gh = self.gh, gh
-            gh.set_accepted()
-            start = 0.0                 # a reaction takes hold_after sim s, never less
-            if self.done_at is not None:
-                self.turnaround.append(self.node.world.time - self.done_at)
-                start, self.done_at = self.done_at + self.node.hold_after, None
-            self.node.world.set_goal(self.i, p.x, p.y, start)
-            self.goals += 1
-            self.hold_since, self.released = None, False
-            self.node.message_hold.note(time.monotonic())
-            self.node.traffic.notify_all()
-            if old is not None:
-                self.preempted += 1
-        if old is not None:
-            old.set_canceled(text="preempted by a new goal")
-
-    def on_cancel(self, gh):
-        with self.node.lock:
-            if self.gh is None or gh != self.gh:
-                return
-            self.gh = None
-            self.node.world.stop(self.i)
-            self.preempted += 1
-            self.node.message_hold.note(time.monotonic())
-            self.node.traffic.notify_all()
-        gh.set_canceled(text="cancelled: robot stopped")
-
-    def fill_odom(self, stamp, world):
-        o = self.odom
-        o.header.stamp = stamp
-        x, y = world.pos[self.i]
-        yaw = world.yaw[self.i]
-        o.pose.pose.position.x, o.pose.pose.position.y = x, y
-        o.pose.pose.orientation.z = math.sin(yaw / 2)
-        o.pose.pose.orientation.w = math.cos(yaw / 2)
-        o.twist.twist.linear.x = world.speed if world.moving(self.i) else 0.0
-        return o
 
 
 class WorldNode:
@@ -269,12 +199,8 @@ class WorldNode:
             rospy.rostime._set_rostime(t)
             self.clock.clock = t
             self.clock_pub.publish(self.clock)
-            for gh in handles:
-                if gh is not None:
-                    gh.set_succeeded()
-            if handles:                 # an arrival is traffic: the agents react to it
-                with self.lock:
-                    self.message_hold.note(time.monotonic())
+            if arrived:
+                self._announce_arrivals(arrived, handles)
             if self.world.steps % self.odom_every == 0:
                 self._publish_odometry(t)
             if self.world.steps % self.status_every == 0:
@@ -316,6 +242,42 @@ class WorldNode:
         if start is not None:
             self.reaction.wall += time.monotonic() - start
         return start is not None
+
+    def _announce_arrivals(self, arrived, handles):
+        """SUCCEEDED to the robots that arrived in this step, one at a time in id order; an
+        arrival is traffic (the message hold follows it). Before the next robot's, the clock
+        (still at this step) waits until this one has its next goal (at most
+        ``hold_limit`` wall s) and the traffic is quiet, so that robots arriving together are
+        handled in the same order at any pace, each knowing what the previous one sent.
+        First the clock of this step gets ``message_quiet`` wall s to reach the agents (it
+        travels on another connection than the action's result), so that they read this
+        step's time when they decide."""
+        if self.message_hold.enabled:
+            time.sleep(self.message_hold.quiet)
+        for k, (i, gh) in enumerate(zip(arrived, handles)):
+            if gh is not None:
+                gh.set_succeeded()
+            with self.lock:
+                self.message_hold.note(time.monotonic())
+            if k + 1 < len(arrived) and self.message_hold.enabled:
+                self._wait_for_goal(self.robots[i])
+                self._hold_for_messages()
+
+    def _wait_for_goal(self, r):
+        """Wait (at most ``hold_limit`` wall s, a reaction hold) until robot ``r`` has a
+        goal again."""
+        start = time.monotonic()
+        with self.lock:
+            if r.done_at is None or self.hold_limit <= 0:
+                return
+            self.reaction.holds += 1
+            while r.done_at is not None and not self.rospy.is_shutdown():
+                left = start + self.hold_limit - time.monotonic()
+                if left <= 0:
+                    self.reaction.timeouts += 1
+                    break
+                self.traffic.wait(left)
+        self.reaction.wall += time.monotonic() - start
 
     def _hold_for_messages(self):
         """Stop the clock while the agents' traffic is not quiet yet (clock_hold.MessageHold);
