@@ -20,6 +20,8 @@ per vertex (believed idleness /T; 1 on the own vertex; (k + 1) / D on the neighb
 offset /S; teammates believed on / heading to the vertex), one edge per directed arc with
 its length /S.
 """
+from array import array
+
 import numpy as np
 
 #: bounds of every Box (finite, as RL libraries prefer; no feature comes near them)
@@ -86,6 +88,8 @@ class GraphTables:
         self.slot_cols = [{int(w): 4 + SLOT_FEATURES * k
                            for k, w in enumerate(self.nbr[v, :self.degree[v]])}
                           for v in range(g.n)]
+        self.static_row_mv = [memoryview(r) for r in self.static_row]
+        self.coef_row_mv = [memoryview(r) for r in self.coef_row]
         self.offset_list = [[tuple(p) for p in rows] for rows in self.offset.tolist()]
         self._dist_m = None
         self.mean_edge = float(self.nbr_len[self.valid].mean()) if self.valid.any() else 1.0
@@ -138,6 +142,7 @@ class FlatObservations:
         self.base_rows = list(self.base)              # row views, one per robot
         self.base_mv = [memoryview(row) for row in self.base_rows]
         self.coef_rows = list(self.coef)
+        self.coef_mv = [memoryview(row) for row in self.coef_rows]
         self.lv_rows = list(board.last_visit)
         self.lv_mv = [memoryview(row) for row in self.lv_rows]
         self.inv_t = -1.0 / tab.T
@@ -159,12 +164,11 @@ class FlatObservations:
         """Robot ``i``'s row from scratch (its vertex changed)."""
         tab, b = self.tab, self.board
         cur = int(b.current[i])
-        row = self.base_rows[i]
         m0, g0 = self.mate0, self.goal0
-        row[0:m0] = tab.static_row[cur]
-        self.coef_rows[i][0:m0] = tab.coef_row[cur]
-        inv_t = self.inv_t
         lvm, rowm = self.lv_mv[i], self.base_mv[i]
+        rowm[0:m0] = tab.static_row_mv[cur]
+        self.coef_mv[i][0:m0] = tab.coef_row_mv[cur]
+        inv_t = self.inv_t
         cols = self.slot_col[i] = tab.slot_cols[cur]
         for w, col in cols.items():
             rowm[col] = lvm[w] * inv_t
@@ -175,8 +179,9 @@ class FlatObservations:
             vals += off[mv[j]]
             vals += off[mn[j]]
             vals.append(mt[j] * inv_t)
-        row[m0:g0] = vals
+        rowm[m0:g0] = array("d", vals)
         if self.goal:
+            row = self.base_rows[i]
             V = tab.n
             row[g0:g0 + V] = self.lv_rows[i] * inv_t
             row[g0 + V:] = 0.0
