@@ -31,6 +31,7 @@ ROS_PYTHON = {"rospy", "rostest", "rosgraph", "roslaunch", "genpy", "actionlib",
 # C++ include directory -> rosdep key (a header without a directory is the standard library)
 CPP_KEYS = {
     "ros": "roscpp", "box2d": "libbox2d-dev", "opencv2": "libopencv-dev",
+    "actionlib_msgs": "actionlib_msgs", "move_base_msgs": "move_base_msgs",
     "geometry_msgs": "geometry_msgs", "nav_msgs": "nav_msgs", "rosgraph_msgs": "rosgraph_msgs",
     "sensor_msgs": "sensor_msgs", "std_msgs": "std_msgs", "std_srvs": "std_srvs",
     "tf2_msgs": "tf2_msgs", "sys": None,  # <sys/stat.h>: the C library

@@ -3,8 +3,11 @@
 
 #include <cmath>
 
+#include <actionlib_msgs/GoalStatus.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <geometry_msgs/Twist.h>
+#include <move_base_msgs/MoveBaseActionGoal.h>
+#include <move_base_msgs/MoveBaseActionResult.h>
 #include <nav_msgs/Odometry.h>
 #include <sensor_msgs/LaserScan.h>
 #include <tf2_msgs/TFMessage.h>
@@ -24,8 +27,10 @@ geometry_msgs::Quaternion yaw_quat(double yaw) {
 
 }  // namespace
 
-RobotsRos::RobotsRos(ros::NodeHandle& nh, std::vector<Robot>* robots, const SimClock* clock, const LaserConfig& laser)
-    : robots_(robots), clock_(clock), laser_(laser), handles_(robots->size()) {
+RobotsRos::RobotsRos(ros::NodeHandle& nh, std::vector<Robot>* robots, const SimClock* clock, const LaserConfig& laser,
+                     ReactionHold* hold)
+    : robots_(robots), clock_(clock), laser_(laser), hold_(hold && hold->enabled() ? hold : nullptr),
+      handles_(robots->size()) {
   for (size_t i = 0; i < robots->size(); ++i) {
     ros::NodeHandle rn(nh, (*robots)[i].ns);
     Handles& h = handles_[i];
@@ -36,8 +41,24 @@ RobotsRos::RobotsRos(ros::NodeHandle& nh, std::vector<Robot>* robots, const SimC
           d.cmd_v = std::isfinite(m->linear.x) ? m->linear.x : 0.0;
           d.cmd_w = std::isfinite(m->angular.z) ? m->angular.z : 0.0;
           d.last_cmd = clock_->now();
+          if (hold_) hold_->on_command(i, d.moving_command(), clock_->now());
         },
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+    if (hold_) {
+      h.goal = rn.subscribe<move_base_msgs::MoveBaseActionGoal>(
+          "move_base/goal", 10,
+          [this, i](const move_base_msgs::MoveBaseActionGoal::ConstPtr& m) {
+            hold_->on_goal(i, m->goal_id.id, clock_->now());
+          },
+          ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+      h.result = rn.subscribe<move_base_msgs::MoveBaseActionResult>(
+          "move_base/result", 10,
+          [this, i](const move_base_msgs::MoveBaseActionResult::ConstPtr& m) {
+            hold_->on_result(i, m->status.goal_id.id, m->status.status == actionlib_msgs::GoalStatus::SUCCEEDED,
+                             clock_->now());
+          },
+          ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+    }
     h.odom = rn.advertise<nav_msgs::Odometry>("odom", 10);
     h.ground_truth = rn.advertise<nav_msgs::Odometry>("base_pose_ground_truth", 10);
     h.scan = rn.advertise<sensor_msgs::LaserScan>("base_scan", 10);

@@ -25,7 +25,11 @@ void SimulationLoop::setup() {
   world_.build(poses, cfg_, &rngs);
   laser_.reset(new Laser(cfg_.laser, cfg_.drive.radius, cfg_.threads, rngs));
   clock_.reset(new SimClock(cfg_.step));
-  ros_.reset(new RobotsRos(nh_, &world_.robots(), clock_.get(), cfg_.laser));
+  double goal_wait = 0;
+  nh_.param("/goal_reached_wait", goal_wait, 0.0);  // the agents' wait at a reached vertex
+  hold_.reset(new ReactionHold(world_.robots().size(), cfg_.reaction_time, std::max(0.0, goal_wait),
+                               cfg_.reaction_wait, cfg_.result_wait));
+  ros_.reset(new RobotsRos(nh_, &world_.robots(), clock_.get(), cfg_.laser, hold_.get()));
   clock_->advertise(nh_);
   status_pub_ = pnh_.advertise<std_msgs::String>("status", 10, true);
   renderer_.reset(new Renderer(cfg_, world_.map(), world_.robots(), *laser_));
@@ -59,14 +63,16 @@ void SimulationLoop::publish() {
   }
 }
 
-void SimulationLoop::wait_for_commands() {
+bool SimulationLoop::wait_for_commands() {
   // A robot is waited for if its newest command arrived during the previous step (it is
   // being driven at the step rate) but none has arrived since the last state was published.
   // A controller that stops, or commands more slowly than the step, is not waited for after
   // one missed step, so a dead node costs at most one timeout. A robot told to stand still
   // is not waited for either: a controller that stopped it (goal reached, planning a new
   // path) often sends nothing more for a while, and a late start costs one step at most.
-  if (cfg_.sync_timeout <= 0) return;
+  // The reaction hold (reaction_hold.h) waits for those: a robot whose goal ended until its
+  // next goal's first command, each with its own bound.
+  using Steady = std::chrono::steady_clock;
   auto pending = [this]() {
     const double now = clock_->now(), step = cfg_.step;
     for (const Robot& r : world_.robots())
@@ -74,17 +80,33 @@ void SimulationLoop::wait_for_commands() {
         return true;
     return false;
   };
-  if (!pending()) return;
-  ++sync_waits_;
-  auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                         std::chrono::duration<double>(cfg_.sync_timeout));
-  while (ros::ok() && pending()) {
-    if (std::chrono::steady_clock::now() >= deadline) {
-      ++sync_timeouts_;
-      return;
-    }
+  auto wall = [](Steady::time_point t) { return std::chrono::duration<double>(t.time_since_epoch()).count(); };
+  auto start = Steady::now();
+  bool sync = cfg_.sync_timeout > 0 && pending();
+  bool held = hold_->holding(clock_->now(), wall(start));
+  if (!sync && !held) return false;
+  bool ever_held = held;
+  if (sync) ++sync_waits_;
+  auto deadline = start + std::chrono::duration_cast<Steady::duration>(std::chrono::duration<double>(cfg_.sync_timeout));
+  auto held_from = start;
+  while (ros::ok()) {
     ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
+    auto now = Steady::now();
+    if (sync && now >= deadline) {
+      ++sync_timeouts_;
+      sync = false;
+    } else if (sync) {
+      sync = pending();
+    }
+    bool was_held = held;
+    held = hold_->holding(clock_->now(), wall(now));
+    if (was_held && !held) held_wall_ += std::chrono::duration<double>(now - held_from).count();
+    if (!was_held && held) held_from = now;
+    ever_held = ever_held || held;
+    if (!sync && !held) break;
   }
+  wait_wall_ += std::chrono::duration<double>(Steady::now() - start).count();
+  return ever_held;
 }
 
 double SimulationLoop::stale_command_fraction() const {
@@ -111,7 +133,13 @@ void SimulationLoop::publish_status(double rtf) {
   }
   js << "], \"wall_contacts\": " << world_.contacts().wall << ", \"robot_contacts\": " << world_.contacts().robot
      << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction())
-     << ", \"sync_waits\": " << sync_waits_ << ", \"sync_timeouts\": " << sync_timeouts_ << "}";
+     << ", \"sync_waits\": " << sync_waits_ << ", \"sync_timeouts\": " << sync_timeouts_
+     << ", \"clock_holds\": " << sync_waits_ + hold_->holds() + hold_->stop_waits()
+     << ", \"hold_timeouts\": " << sync_timeouts_ + hold_->timeouts() + hold_->stop_timeouts() << ", \"held_wall\": " << fmt("%.3f", wait_wall_)
+     << ", \"hold_reasons\": {\"commands\": {\"holds\": " << sync_waits_ << ", \"timeouts\": " << sync_timeouts_
+     << ", \"wall\": " << fmt("%.3f", wait_wall_ - held_wall_) << "}, \"reaction\": {\"holds\": " << hold_->holds()
+     << ", \"timeouts\": " << hold_->timeouts() << ", \"wall\": " << fmt("%.3f", held_wall_)
+     << "}, \"result\": {\"holds\": " << hold_->stop_waits() << ", \"timeouts\": " << hold_->stop_timeouts() << "}}}";
   std_msgs::String m;
   m.data = js.str();
   status_pub_.publish(m);
@@ -128,7 +156,10 @@ void SimulationLoop::run() {
   publish_status(0);
   while (ros::ok()) {
     ros::spinOnce();
-    wait_for_commands();
+    if (wait_for_commands()) {  // the clock stood still for a reaction: pace on from now, no catch-up
+      pace_wall = Clock::now();
+      pace_sim = clock_->now();
+    }
     step_once();
     publish();
     const double sim_time = clock_->now();
@@ -153,9 +184,11 @@ void SimulationLoop::run() {
     double since_log = std::chrono::duration<double>(now - log_wall).count();
     if (since_log >= cfg_.log_period) {
       ROS_INFO("stage2d: sim time %.1f s, real-time factor %.2f (speedup %g), %zu robots, contacts wall %ld robot %ld, "
-               "stale commands %.1f%%, command waits %ld (timeouts %ld)",
+               "stale commands %.1f%%, command waits %ld (timeouts %ld), reaction holds %ld (timeouts %ld, %.1f wall s), "
+               "result waits %ld (timeouts %ld)",
                sim_time, (sim_time - log_sim) / since_log, cfg_.speedup, world_.robots().size(), world_.contacts().wall,
-               world_.contacts().robot, 100.0 * stale_command_fraction(), sync_waits_, sync_timeouts_);
+               world_.contacts().robot, 100.0 * stale_command_fraction(), sync_waits_, sync_timeouts_, hold_->holds(),
+               hold_->timeouts(), held_wall_, hold_->stop_waits(), hold_->stop_timeouts());
       log_sim = sim_time;
       log_wall = now;
     }

@@ -46,6 +46,9 @@ struct SimConfig {
   int substeps = 1;            // physics sub-steps per step
   int threads = 0;             // scan threads, 0 = all cores
   double sync_timeout = 0.1;   // wall seconds to wait for a driven robot's next command
+  double reaction_time = 0.0;  // sim seconds a robot's reaction may take before the clock waits for it
+  double reaction_wait = 0.5;  // wall seconds the clock waits at most per reaction (0 = never)
+  double result_wait = 0.02;   // wall seconds the clock waits for a result after a driven robot's stop
   int seed = 0;
   std::vector<double> odom_error{0.01, 0.01, 0.0, 0.1};
   bool scan_always = false;    // benchmarking: compute scans without subscribers

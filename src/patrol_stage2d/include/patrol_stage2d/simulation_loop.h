@@ -1,5 +1,5 @@
 // Simulation loop: builds the simulator from its parameters, then runs it -- each step waits
-// for the commands of the driven robots, moves the world, publishes the state and the scans
+// for the commands of the driven robots and for the robots' reactions (reaction_hold.h), moves the world, publishes the state and the scans
 // that are due, and paces sim time against the wall clock (~speedup); it also reports its
 // status (~status topic, periodic log line).
 #pragma once
@@ -12,6 +12,7 @@
 
 #include "patrol_stage2d/config.h"
 #include "patrol_stage2d/laser.h"
+#include "patrol_stage2d/reaction_hold.h"
 #include "patrol_stage2d/renderer.h"
 #include "patrol_stage2d/robot_ros.h"
 #include "patrol_stage2d/services.h"
@@ -29,7 +30,7 @@ class SimulationLoop {
  private:
   void step_once();
   void publish();
-  void wait_for_commands();
+  bool wait_for_commands();  // true if the clock stood still for a reaction
   double stale_command_fraction() const;
   void publish_status(double rtf);
 
@@ -38,12 +39,15 @@ class SimulationLoop {
   World world_;
   std::unique_ptr<SimClock> clock_;
   std::unique_ptr<Laser> laser_;
+  std::unique_ptr<ReactionHold> hold_;
   std::unique_ptr<RobotsRos> ros_;
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Services> services_;
   ros::Publisher status_pub_;
   double next_scan_ = 0, next_snapshot_ = 0;
   long sync_waits_ = 0, sync_timeouts_ = 0;
+  double held_wall_ = 0;  // wall s the clock stood still for reactions
+  double wait_wall_ = 0;  // wall s the clock stood still in all (commands and reactions)
 };
 
 }  // namespace patrol_stage2d
