@@ -46,7 +46,7 @@ class EnvStrategy(PatrolStrategy):
     def __init__(self, ctx):
         super().__init__(ctx)
         self.board: DecisionBoard = ctx.params[BOARD_PARAM]
-        self._news = self.board.news
+        self._news = self.board.receiver(self.id)
 
     def start(self, start_vertex, now):
         super().start(start_vertex, now)
@@ -71,7 +71,7 @@ class EnvStrategy(PatrolStrategy):
 
     def on_message(self, data, now):
         if len(data) >= 4 and data[1] == MSG_LEARNED_VISIT:
-            self._news(self.id, data[0], data[2], data[3], now)
+            self._news(data[0], data[2], data[3], now)
 
     def on_goal_failed(self, vertex, now):
         """A goal given up: the environment decides again (the life cycle asks)."""

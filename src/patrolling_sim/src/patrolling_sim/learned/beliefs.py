@@ -52,6 +52,14 @@ class TeamBeliefs:
         if self.listener is not None:
             self.listener.rebuild(i)
 
+    def receiver(self, i: int):
+        """A function ``f(j, v, nxt, now)`` that does ``news(i, j, v, nxt, now)`` for robot
+        ``i`` (the listener's fused one when it has one: one call per delivered message)."""
+        fused = getattr(self.listener, "receiver", None)
+        if fused is not None:
+            return fused(i)
+        return lambda j, v, nxt, now: self.news(i, j, v, nxt, now)
+
     def news(self, i: int, j: int, v: int, nxt: int, now: float) -> None:
         """Robot ``i`` heard at ``now`` that teammate ``j`` reached ``v``, heading to ``nxt``
         (the listener is told with ``fresher``: whether the believed visit time of v

@@ -204,6 +204,36 @@ class FlatObservations:
         row[col + 2], row[col + 3] = off[nxt]
         row[col + 4] = value
 
+    def receiver(self, i: int):
+        """``f(j, v, nxt, now)``: the board's ``news(i, j, v, nxt, now)`` (the beliefs of
+        robot ``i``, then :meth:`news`) in one call, the same operations in the same order."""
+        b, tab = self.board, self.tab
+        lvm, rowm = self.lv_mv[i], self.base_mv[i]
+        mate_vertex, mate_next, mate_time = b.mate_vertex[i], b.mate_next[i], b.mate_time[i]
+        slot_col, mate_col, current = self.slot_col, self.mate_col[i], b.current
+        offsets, T, goal0 = tab.offset_list, tab.T, self.goal0 if self.goal else None
+
+        def news(j, v, nxt, now):
+            fresher = now > lvm[v]
+            if fresher:
+                lvm[v] = now
+            mate_vertex[j] = v
+            mate_next[j] = nxt
+            mate_time[j] = now
+            value = -now / T
+            if fresher:
+                col = slot_col[i].get(v)
+                if col is not None:
+                    rowm[col] = value
+                if goal0 is not None:
+                    rowm[goal0 + v] = value
+            col = mate_col[j]
+            off = offsets[current[i]]
+            rowm[col], rowm[col + 1] = off[v]
+            rowm[col + 2], rowm[col + 3] = off[nxt]
+            rowm[col + 4] = value
+        return news
+
     def observe(self, now: float, ready) -> np.ndarray:
         """(N, F) float32 observations at ``now``; ``ready``: N floats (1: must decide)."""
         buf = self._buf
