@@ -16,8 +16,10 @@ fastest of each:
   seed; decisions = visit reports.
 
 CPU time is ``time.process_time()`` of this process. Prints one table row per case: env
-decisions/s, env and plain us per decision, and their ratio (issue targets: >= 10,000
-decisions/s on grid with 4 robots, ratio <= 3).
+decisions/s, env and plain us per decision (fastest runs), their ratio (issue targets:
+>= 10,000 decisions/s on grid with 4 robots, ratio <= 3), and the median over the pairs of
+the ratio within a pair (an environment run and the plain run right after it: on a loaded
+machine the two runs of a pair see about the same load, the fastest runs may not).
 
 Usage:
     bench/env_bench.py [--maps grid broughton] [--robots 4 12] [--duration 1800]
@@ -74,15 +76,21 @@ def plain_run(map_name, robots, duration, seed):
     return cpu, sum(c + 1 for c in sim.monitor.visits)
 
 
+def per_decision(run):
+    return run[0] / max(run[1], 1)
+
+
 def best_pair(repeat, *args):
-    """The fastest environment run and the fastest plain run of ``repeat`` alternated pairs
-    (``args``: map, robots, duration, seed)."""
+    """(fastest environment run, fastest plain run, median pair ratio) of ``repeat``
+    alternated pairs (``args``: map, robots, duration, seed)."""
     env, plain = [], []
     for _ in range(repeat):
         env.append(env_run(*args))
         plain.append(plain_run(*args))
-    return (min(env, key=lambda r: r[0] / max(r[1], 1)),
-            min(plain, key=lambda r: r[0] / max(r[1], 1)))
+    ratios = sorted(per_decision(e) / per_decision(p) for e, p in zip(env, plain))
+    mid = len(ratios) // 2
+    median = ratios[mid] if len(ratios) % 2 else (ratios[mid - 1] + ratios[mid]) / 2
+    return min(env, key=per_decision), min(plain, key=per_decision), median
 
 
 def main():
@@ -96,14 +104,14 @@ def main():
     print(f"# {platform.node()}, python {platform.python_version()}, load average "
           f"{os.getloadavg()[0]:.1f}; {a.duration:g} sim s, best of {a.repeat}")
     print("| map | robots | env decisions | env decisions/s | env us/decision "
-          "| plain us/decision (RAND) | ratio |")
-    print("|---|---|---|---|---|---|---|")
+          "| plain us/decision (RAND) | ratio | ratio, median of pairs |")
+    print("|---|---|---|---|---|---|---|---|")
     for m in a.maps:
         for n in a.robots:
-            (ecpu, edec), (pcpu, pdec) = best_pair(a.repeat, m, n, a.duration, a.seed)
+            (ecpu, edec), (pcpu, pdec), med = best_pair(a.repeat, m, n, a.duration, a.seed)
             e_us, p_us = 1e6 * ecpu / edec, 1e6 * pcpu / pdec
             print(f"| {m} | {n} | {edec} | {edec / ecpu:,.0f} | {e_us:.0f} | {p_us:.0f} "
-                  f"| {e_us / p_us:.2f} |", flush=True)
+                  f"| {e_us / p_us:.2f} | {med:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
