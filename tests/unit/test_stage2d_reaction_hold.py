@@ -121,3 +121,13 @@ def test_a_driven_robots_stop_waits_briefly_for_its_result(driver):
         "cmd 0 0 3.1", "hold 3.1 6.1",                  # still stopped: no new wait
         "counts"])
     assert out == ["1", "1", "0", "1", "1", "0", "0", "1 0 2 1"]
+
+
+def test_a_robot_whose_goal_ended_is_not_a_driven_robot(driver):
+    """The command wait waits for a robot stopped step after step by its controller (blocked)
+    but not for one whose goal ended (any result) until it moves again."""
+    out = driver("1 0 0 0.5 0.02", [
+        "goal 0 a 0", "cmd 0 1 0", "ended 0", "cmd 0 0 1.0", "cmd 0 0 1.1", "ended 0",
+        "result 0 a 0 1.2", "ended 0", "goal 0 b 4.2", "cmd 0 0 4.2", "ended 0",
+        "cmd 0 1 4.2", "ended 0", "result 0 b 1 9.0", "ended 0"])
+    assert out == ["0", "0", "1", "1", "0", "1"]

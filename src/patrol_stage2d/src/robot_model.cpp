@@ -66,6 +66,7 @@ void place(Robot* r, double x, double y, double yaw) {
   DriveState& d = r->drive;
   d.v = d.w = d.cmd_v = d.cmd_w = 0;
   d.last_cmd = -1e9;
+  d.prev_cmd = -1e9;
   const b2Vec2& p = r->body->GetPosition();
   r->odom.prev.x = p.x;
   r->odom.prev.y = p.y;

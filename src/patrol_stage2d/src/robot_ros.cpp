@@ -40,6 +40,7 @@ RobotsRos::RobotsRos(ros::NodeHandle& nh, std::vector<Robot>* robots, const SimC
           DriveState& d = (*robots_)[i].drive;
           d.cmd_v = std::isfinite(m->linear.x) ? m->linear.x : 0.0;
           d.cmd_w = std::isfinite(m->angular.z) ? m->angular.z : 0.0;
+          if (clock_->now() > d.last_cmd + 1e-9) d.prev_cmd = d.last_cmd;
           d.last_cmd = clock_->now();
           if (hold_) hold_->on_command(i, d.moving_command(), clock_->now());
         },

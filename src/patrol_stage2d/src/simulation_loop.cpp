@@ -68,16 +68,20 @@ bool SimulationLoop::wait_for_commands() {
   // being driven at the step rate) but none has arrived since the last state was published.
   // A controller that stops, or commands more slowly than the step, is not waited for after
   // one missed step, so a dead node costs at most one timeout. A robot told to stand still
-  // is not waited for either: a controller that stopped it (goal reached, planning a new
-  // path) often sends nothing more for a while, and a late start costs one step at most.
+  // is waited for only while its controller keeps commanding it step after step (blocked in
+  // front of another robot: its decision to go on must not cost simulated time), not after
+  // its goal ended (a result came: the controller sends nothing more until the next goal).
   // The reaction hold (reaction_hold.h) waits for those: a robot whose goal ended until its
   // next goal's first command, each with its own bound.
   using Steady = std::chrono::steady_clock;
   auto pending = [this]() {
     const double now = clock_->now(), step = cfg_.step;
-    for (const Robot& r : world_.robots())
-      if (r.drive.last_cmd >= now - step - 1e-9 && r.drive.last_cmd < now - 1e-9 && r.drive.moving_command())
-        return true;
+    for (const Robot& r : world_.robots()) {
+      const DriveState& d = r.drive;
+      if (d.last_cmd < now - step - 1e-9 || d.last_cmd >= now - 1e-9) continue;  // not driven in the last step
+      bool cycling = hold_->enabled() && d.prev_cmd >= now - 2 * step - 1e-9 && !hold_->goal_ended(r.id);
+      if (d.moving_command() || cycling) return true;
+    }
     return false;
   };
   auto wall = [](Steady::time_point t) { return std::chrono::duration<double>(t.time_since_epoch()).count(); };

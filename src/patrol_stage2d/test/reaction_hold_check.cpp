@@ -2,7 +2,8 @@
 // tests/unit/test_stage2d_reaction_hold.py. First line: robots reaction_time goal_wait wait
 // result_wait.
 // Then one event per line: "goal I ID SIM", "result I ID OK SIM" (OK 1 = SUCCEEDED),
-// "cmd I M SIM" (M 1 = a moving command), "hold SIM WALL" (prints 1 if the clock stands still, else 0), "counts" (prints
+// "cmd I M SIM" (M 1 = a moving command), "hold SIM WALL" (prints 1 if the clock stands still, else 0), "ended I"
+// (prints 1 if robot I's goal ended since its last moving command), "counts" (prints
 // "holds timeouts").
 #include <iostream>
 #include <string>
@@ -28,6 +29,8 @@ int main() {
       hold.on_command(i, ok == 1, sim);
     } else if (ev == "hold" && std::cin >> sim >> wall) {
       std::cout << (hold.holding(sim, wall) ? 1 : 0) << "\n";
+    } else if (ev == "ended" && std::cin >> i) {
+      std::cout << (hold.goal_ended(i) ? 1 : 0) << "\n";
     } else if (ev == "counts") {
       std::cout << hold.holds() << " " << hold.timeouts() << " " << hold.stop_waits() << " " << hold.stop_timeouts()
                 << "\n";

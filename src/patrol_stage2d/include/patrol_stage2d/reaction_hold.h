@@ -60,6 +60,7 @@ class ReactionHold {
   void on_result(size_t i, const std::string& goal_id, bool succeeded, double sim) {
     Robot& r = robots_[i];
     r.stop_at = -1;
+    r.ended = true;
     if (!succeeded || goal_id != r.goal_id) return;
     r.awaiting = true;
     r.goal_seen = r.released = false;
@@ -79,8 +80,13 @@ class ReactionHold {
     r.stop_since = -1;
     r.cmd_moving = moving;
     r.cmd_at = sim;
+    if (moving) r.ended = false;
     if (r.awaiting && moving) r.awaiting = false;
   }
+
+  // Whether robot i's goal has ended (any result) since its last moving command: a stopped
+  // robot that is not waiting for its controller.
+  bool goal_ended(size_t i) const { return robots_[i].ended; }
 
   // Whether the clock must stand still before the step at sim time `sim`, wall time `wall`.
   bool holding(double sim, double wall) {
@@ -128,6 +134,7 @@ class ReactionHold {
     double stop_since = -1;    // wall time the clock began to wait after that stop
     bool awaiting = false;     // a reaction is pending
     bool goal_seen = false;    // its goal has come
+    bool ended = false;        // a result came after its last moving command
     bool released = false;     // waited `wait` wall s: no longer held for
     double due = 0;            // sim time from which the clock waits for it
     double hold_since = -1;    // wall time the clock began to wait for it (< 0: not yet)

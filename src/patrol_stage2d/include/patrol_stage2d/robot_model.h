@@ -19,6 +19,7 @@ struct Pose2D {
 // Velocity command as received and the acceleration-limited velocity being driven.
 struct DriveState {
   double cmd_v = 0, cmd_w = 0, last_cmd = -1e9;  // last_cmd in sim seconds
+  double prev_cmd = -1e9;                        // sim time of the step of the command before (another step)
   double v = 0, w = 0;                           // current (acceleration-limited) command
   // steps driven by a live command, and those whose newest command arrived before the
   // previous step was published (the controller missed a step: pace too fast for it)
