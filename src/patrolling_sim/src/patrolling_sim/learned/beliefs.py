@@ -8,7 +8,8 @@ tables the observations read, in the learning environment and in the ``POLICY`` 
   to the team, else -1: unknown);
 - ``current[i]``: the vertex robot i last reached.
 
-Beliefs change only through the robot's own visits (:meth:`TeamBeliefs.start`,
+The tables are changed in place, never rebound (the observation code keeps views of their
+rows). Beliefs change only through the robot's own visits (:meth:`TeamBeliefs.start`,
 :meth:`TeamBeliefs.arrive`) and the ``[j, MSG_LEARNED_VISIT, v, next]`` messages actually
 delivered to it under the run's communication model (:meth:`TeamBeliefs.news`).
 """
@@ -33,7 +34,8 @@ class TeamBeliefs:
         self.mate_time = [[0.0] * robots for _ in range(robots)]
         self.current = list(starts)
         #: told of every belief change (an incremental observation builder, with the
-        #: methods ``rebuild(i)`` and ``news(i, j, v, nxt, now, fresher)``), or None
+        #: methods ``rebuild(i)``, ``news(i, j, v, nxt, now, fresher)`` and optionally
+        #: ``receiver(i)``, see :meth:`receiver`), or None
         self.listener = None
 
     def start(self, i: int, v: int) -> None:
