@@ -8,6 +8,7 @@ import re
 import yaml
 
 from abstract_runs import run_abstract
+from rosenv import ros_env
 
 DURATION = 60.0
 
@@ -36,7 +37,8 @@ def test_bids_arrive_before_the_clock_moves(tmp_path, monkeypatch):
     on from its request (the hold waits for it; without it, on a quiet machine at x30, the
     median bid came one 20 ms step late). A bid slower than the hold's quiet window (a
     heavily loaded machine) may still come late: at most one in ten here."""
-    monkeypatch.setenv("PATROLLING_SIM_TRACE_AUCTIONS", "1")
+    # the runs' environment is built once and cached: set the variable in it for this test
+    monkeypatch.setitem(ros_env(), "PATROLLING_SIM_TRACE_AUCTIONS", "1")
     r = run_abstract("DTAP", 2, tmp_path, duration=DURATION)
     assert r.exit_code == 0, r.output[-2000:]
     logs = {os.path.realpath(p)

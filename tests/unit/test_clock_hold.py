@@ -145,3 +145,18 @@ def test_auction_trace_measures_the_next_rounds_lag():
     t.note([0, MSG_SSI_BID, 6, 50], 30.0, 2.001)
     assert t.lags == [pytest.approx(0.04), pytest.approx(0.0)]
     assert "n 2 median 0.040 max 0.040" in t.summary()
+
+
+def test_auction_timers_mark_where_an_auction_may_end():
+    from clock_hold import AuctionTimers
+    t = AuctionTimers()
+    t.note([1, MSG_SSI_TASK_REQUEST, 7, 300], 10.0)
+    t.note([-1, MSG_SSI_TASK_REQUEST, 7, 300], 10.0)     # not an agent's: ignored
+    t.note([2, MSG_SSI_BID, 7, 100], 10.0)               # not a request: ignored
+    assert not t.reached(10.98)
+    assert t.reached(11.0)                               # 1.0 s: an auction of no task
+    assert not t.reached(11.0) and not t.reached(11.08)  # each end once
+    assert t.reached(11.1)
+    t.note([1, MSG_SSI_TASK_REQUEST, 8, 300], 11.1)      # the next round replaces them
+    assert not t.reached(12.0) and t.reached(12.1)
+    assert t.reached(14.1) and not t.ends                # 3 s at most: nothing left

@@ -36,7 +36,8 @@ between a SUCCEEDED and the robot's next goal (the agents' turnaround).
 Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20),
 ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
 ~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.2 wall s; 0 = never hold),
-~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off).
+~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off),
+~auction_timers (true: hold where a DTA auction may end).
 
 Diagnostic: with ``PATROLLING_SIM_TRACE_AUCTIONS=1`` in its environment the node logs at
 shutdown the sim and wall s from each DTA task request (type 41) to each bid (type 42).
@@ -50,7 +51,8 @@ import time
 
 # the motion model lives beside this script (Python puts the script folder on sys.path)
 from straight_line_world import EPS, StraightLineWorld, read_positions
-from clock_hold import AuctionTrace, HoldCounter, MessageHold, reaction_deadline, totals
+from clock_hold import (AuctionTimers, AuctionTrace, HoldCounter, MessageHold, reaction_deadline,
+                        totals)
 from robot_server import RobotServer
 
 STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5 Hz)
@@ -103,6 +105,9 @@ class WorldNode:
                                         float(rospy.get_param("~answer_quiet", ANSWER_QUIET)),
                                         float(rospy.get_param("~message_wait", MESSAGE_WAIT)),
                                         len(positions))
+        # hold the clock (as after a message) where a DTA auction may end: the auctioneer's
+        # timer fires there and it acts (a new round, a goal)
+        self.timers = AuctionTimers() if rospy.get_param("~auction_timers", True) else None
         self.go_at = None
         self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=1)
         self.clock = Clock()
@@ -152,6 +157,8 @@ class WorldNode:
         if len(d) >= 2:                             # any message: the agents react to GO too
             with self.lock:
                 self.message_hold.note(now, d)
+                if self.timers is not None:
+                    self.timers.note(d, self.world.time)
                 self.traffic.notify_all()
         if self.trace is not None:
             self.trace.note(d, self.world.time, now)
@@ -199,6 +206,10 @@ class WorldNode:
             rospy.rostime._set_rostime(t)
             self.clock.clock = t
             self.clock_pub.publish(self.clock)
+            if self.timers is not None:
+                with self.lock:
+                    if self.timers.reached(self.world.time):
+                        self.message_hold.note(time.monotonic())
             if arrived:
                 self._announce_arrivals(arrived, handles)
             if self.world.steps % self.odom_every == 0:

@@ -184,3 +184,31 @@ def reaction_deadline(robots, arrived_by, limit, counter, now):
             end = r.hold_since + limit
             deadline = end if deadline is None else min(deadline, end)
     return deadline
+
+
+class AuctionTimers:
+    """The possible ends of the DTA auctions running (sim times): a task request by robot r at
+    sim t may end at t + AUCTION_BASE + AUCTION_STEP * k, up to t + AUCTION_LONGEST (the
+    length depends on r's task count, which the world does not know); r's next request
+    replaces them. :meth:`reached` says when the clock has reached one, so that the world
+    can hold the clock while the auctioneer's timer fires and it acts."""
+
+    def __init__(self):
+        self.ends = {}              # robot -> [sim times still ahead], ascending
+
+    def note(self, data, sim):
+        if len(data) >= 4 and data[0] >= 0 and data[1] == MSG_SSI_TASK_REQUEST:
+            n = round((AUCTION_LONGEST - AUCTION_BASE) / AUCTION_STEP)
+            self.ends[data[0]] = [sim + AUCTION_BASE + AUCTION_STEP * k for k in range(n + 1)]
+
+    def reached(self, sim):
+        """True if sim time ``sim`` reached a possible end not reached before."""
+        hit = False
+        for robot in list(self.ends):
+            ends = self.ends[robot]
+            while ends and ends[0] <= sim + 1e-9:
+                ends.pop(0)
+                hit = True
+            if not ends:
+                del self.ends[robot]
+        return hit
