@@ -31,7 +31,8 @@ from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.model.graph import load_graph
 from patrolling_sim.planning.references import references
 from patrolling_sim.report import fidelity_status, starvation
-from patrolling_sim.report.reference_sources import display_names, merge_sources
+from patrolling_sim.report.reference_sources import config_columns, display_names
+from patrolling_sim.report.reference_sources import merge_sources
 
 #: (runs.csv column, heading, decimals): the columns of every table
 METRICS = (("idl_avg", "avg idleness (original) [s]", 1),
@@ -46,8 +47,6 @@ USED_STATUS = "TIMEOUT"
 NOT_RUN = "NOT_RUN"
 CELL = ["map", "robots", "alg"]
 REQUIRED = ("map", "robots", "alg", "seed", "status")
-#: runs.csv columns that are not configuration (the rest must be constant within a cell)
-_NOT_CONFIG = {"key", "mode", "map", "robots", "alg", "seed"}
 
 
 @dataclass
@@ -109,10 +108,7 @@ def load_runs(campaign_dir: str):
                 raise PatrolInputError(f"{path}: column {c}: a {USED_STATUS} run has a "
                                        f"non-numeric value {raw[v.isna() & raw.notna()].iloc[0]!r}")
             df[c] = pd.to_numeric(df[c], errors="coerce")
-    status_at = list(df.columns).index("status")
-    for c in list(df.columns)[:status_at]:
-        if c in _NOT_CONFIG:
-            continue
+    for c in config_columns(df):             # the settings: constant within a cell
         if df.groupby(CELL)[c].nunique(dropna=False).max() > 1:
             raise PatrolInputError(f"{path}: column {c} varies within a map/robots/alg cell; "
                                    "the reference tables need one setting per cell")

@@ -15,7 +15,7 @@ reports do (a learned policy with its file's label).
 """
 import os
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import yaml
 
@@ -65,7 +65,9 @@ def read_provenance(folder: str) -> dict:
         return {}
 
 
-def _config_columns(df) -> List[str]:
+def config_columns(df) -> List[str]:
+    """The columns of a runs.csv that are settings: those before ``status``, other than the
+    run's key, mode and :data:`RUN_ID`."""
     status_at = list(df.columns).index("status")
     return [c for c in list(df.columns)[:status_at] if c not in ("key", "mode", *RUN_ID)]
 
@@ -107,7 +109,7 @@ def merge_sources(base: str, replacements: Sequence[str],
                 raise PatrolInputError(f"{folder}: the runs of {a} are not the same maps, team "
                                        f"sizes and seeds as in {base}")
             ref = theirs if len(theirs) else df
-            for c in _config_columns(ref):
+            for c in config_columns(ref):
                 if c in mine and (set(mine[c].astype(str)) != set(ref[c].astype(str))):
                     raise PatrolInputError(f"{folder}: setting {c} of {a} differs from {base}'s")
             taken[a] = folder
@@ -127,19 +129,21 @@ def display_names(df) -> Dict[str, str]:
     folder, column ``source_dir``, or as given); else the short name."""
     out = {}
     for alg, g in df[df["status"] == "TIMEOUT"].groupby("alg"):
-        out[str(alg)] = str(alg)
-        for _, r in g.head(3).iterrows():
-            prefix = str(r.get("prefix", ""))
-            base = str(r.get("source_dir", ""))
-            for path in (os.path.join(base, prefix + "_info.csv"), prefix + "_info.csv"):
-                try:
-                    with open(path, encoding="utf-8") as f:
-                        info = parse_info_line(f.read(), path)
-                except (OSError, ValueError):
-                    continue
-                out[str(alg)] = display_name(str(alg), info["algorithm_params"])
-                break
-            else:
-                continue
-            break
+        params = next((p for p in map(_algorithm_params, g.head(3).to_dict("records"))
+                       if p is not None), None)
+        out[str(alg)] = str(alg) if params is None else display_name(str(alg), params)
     return out
+
+
+def _algorithm_params(run) -> Optional[str]:
+    """info.csv's ``algorithm_params`` of one runs.csv row (a dict), or None if its info.csv
+    is not found (under ``source_dir``, or at ``prefix`` as given) or not readable."""
+    prefix = str(run.get("prefix", ""))
+    for path in (os.path.join(str(run.get("source_dir", "")), prefix + "_info.csv"),
+                 prefix + "_info.csv"):
+        try:
+            with open(path, encoding="utf-8") as f:
+                return parse_info_line(f.read(), path)["algorithm_params"]
+        except (OSError, ValueError):
+            continue
+    return None
