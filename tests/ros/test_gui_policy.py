@@ -2,16 +2,16 @@
 hands the file it is given (as an absolute path) to the experiment it starts, takes a file
 from its chooser, and a policy file that does not load stops the start with a one-line
 error. The experiment is a stand-in script that reports the configuration it was given.
-One test, one Tk window: Tk keeps its display connection after the window is destroyed,
-and a second test's Xvfb would not be the first's."""
+One test, one Tk window (Tk keeps its display connection after the window is destroyed:
+the virtual display is one per test process, tests/ros/conftest.py)."""
 import os
 import shutil
 import sys
 import textwrap
-import time
 
-import pytest
 import yaml
+
+from tk_pump import pump
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
@@ -53,16 +53,6 @@ def test_policy_field(tmp_path, xvfb, monkeypatch):
         root.destroy()
 
 
-def _pump(app, root, cond, timeout=60):
-    t0 = time.time()
-    while time.time() - t0 < timeout:
-        root.update()
-        if cond():
-            return
-        time.sleep(0.05)
-    pytest.fail(f"GUI: not done within {timeout} s; status '{app.status.get()}'")
-
-
 def _log(app):
     return app.log.get("1.0", "end")
 
@@ -73,7 +63,8 @@ def check_reaches_the_experiment(app, root, tmp_path):
     app.vars["policy"].set("mine.npz")                     # relative to the working folder
     app.start_btn.invoke()
     assert app.proc is not None, app.status.get()
-    _pump(app, root, lambda: app.proc is None)
+    pump(root, lambda: app.proc is None, 60, "the experiment's end",
+         lambda: f"status '{app.status.get()}'")
     assert app.status.get() == "finished (exit 0)", app.status.get()
     want = str(tmp_path / "mine.npz")
     assert f"alg POLICY policy {want}" in _log(app), _log(app)

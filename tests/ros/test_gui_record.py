@@ -9,11 +9,10 @@ import glob
 import os
 import subprocess
 import sys
-import time
 
-import pytest
 
 from rosenv import ros_env
+from tk_pump import pump
 from test_experiments import START, check_files, finish, prefixes, start
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
@@ -63,15 +62,8 @@ def test_gui_starts_and_stops_an_experiment(tmp_path, xvfb, monkeypatch):
         app.start_btn.invoke()
         assert str(app.stop_btn["state"]) == "normal"
 
-        def pump(cond, timeout, what):
-            t0 = time.time()
-            while time.time() - t0 < timeout:
-                root.update()
-                if cond():
-                    return
-                time.sleep(0.05)
-            pytest.fail(f"GUI: {what} not seen within {timeout} s; status "
-                        f"'{app.status.get()}', progress '{app.progress.get()}'")
+        def state():
+            return f"status '{app.status.get()}', progress '{app.progress.get()}'"
 
         def sim_time():
             words = app.progress.get().split()
@@ -79,7 +71,7 @@ def test_gui_starts_and_stops_an_experiment(tmp_path, xvfb, monkeypatch):
                 "waiting" not in app.progress.get() else -1.0
 
         # the progress shows the simulator's clock, a few seconds ahead of the time since GO
-        pump(lambda: sim_time() >= 36.0, 180, "progress after GO")
+        pump(root, lambda: sim_time() >= 36.0, 180, "progress after GO", state)
         assert "cycles" in app.progress.get() and "avg idleness" in app.progress.get()
         shot = tmp_path / "gui.png"
         subprocess.run(["import", "-display", xvfb, "-window", "root", str(shot)],
@@ -88,7 +80,7 @@ def test_gui_starts_and_stops_an_experiment(tmp_path, xvfb, monkeypatch):
         img = cv2.imread(str(shot))
         assert img is not None and img.std() > 5, "blank screenshot"
         app.stop_btn.invoke()                          # Stop: orderly shutdown
-        pump(lambda: app.proc is None, 120, "the run's end")
+        pump(root, lambda: app.proc is None, 120, "the run's end", state)
         assert app.status.get().startswith("finished"), app.status.get()
         assert not os.path.exists(app.run_cfg), "the run's temporary configuration was left"
         assert str(app.start_btn["state"]) == "normal"
