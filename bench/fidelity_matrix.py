@@ -53,53 +53,104 @@ def verdict(cmp, reasons):
 
 
 def measure(rows, seeds):
-    """[(key, original runs, graph runs, ROS runs)] for every cell of the original."""
+    """[(key, original runs, graph runs, ROS runs, draws pace)] for every cell of the
+    original, in the order algorithm, map, team size."""
     ros = {}
     for who in ("ours_separate", "ours_shared"):
         for k, v in om.cells(rows, who).items():
             ros.setdefault(k, []).extend(v)
+    pace_by_cell = om.paces(rows)
     out = []
-    for key, orig in sorted(om.cells(rows).items()):
+
+    def order(item):
+        (map_name, robots, alg, duration), _ = item
+        return alg, map_name.lower(), robots, duration
+
+    for key, orig in sorted(om.cells(rows).items(), key=order):
         map_name, robots, alg, duration = key
-        graph = [om.graph_run(map_name, robots, alg, s, duration)[:3] for s in range(seeds)]
-        out.append((key, orig, graph, ros.get(key, [])))
+        draws = om.draws_pace(key, pace_by_cell)
+        graph = [om.graph_run(map_name, robots, alg, s, duration, draws)[:3]
+                 for s in range(seeds)]
+        out.append((key, orig, graph, ros.get(key, []), draws))
         print(f"  {map_name} {robots} {alg}: done", file=sys.stderr, flush=True)
     return out
 
 
-def table(cells, known, seeds):
-    lines = ["| map | N | alg | original: runs, avg / max / visits | original's max: range "
-             f"| graph mode, {seeds} seeds | graph vs original (avg / max / visits) | within "
-             "| ROS mode (runs) | ROS vs original |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    n_in = n_cells = n_known = 0
-    worst, status = [], []
-    for (map_name, robots, alg, _), orig, graph, ros in cells:
-        ref, got = om.mean_figures(orig), om.mean_figures(graph)
-        cmp = om.compare(ref, got)
+HEADER = ("| map | N | original: runs, avg / max / visits | original's max: range "
+          "| graph mode, {seeds} seeds | graph vs original (avg / max / visits) | within "
+          "| ROS mode (runs) | ROS vs original |")
+
+
+def assess(cells, known):
+    """[(cell, verdict word, within, status word, relative differences text, score)]:
+    every cell's comparison; score is the largest difference in units of its tolerance."""
+    out = []
+    for cell in cells:
+        (map_name, robots, alg, _), orig, graph = cell[:3]
+        cmp = om.compare(om.mean_figures(orig), om.mean_figures(graph))
         reasons = {m: om.known_reason(known, map_name, robots, alg, m) for m in om.METRICS}
         word, ok = verdict(cmp, reasons)
-        n_cells += 1
-        n_in += ok
-        n_known += word.startswith("known")
-        status.append((map_name, robots, alg,
-                       "within" if ok else "known" if word.startswith("known") else "differs",
-                       fmt_rel(cmp)))
-        worst.append((max(abs(cmp[m][0]) / om.TOL[m] for m in om.METRICS),
-                      f"{map_name} {robots} {alg}", fmt_rel(cmp)))
+        status = "within" if ok else "known" if word.startswith("known") else "differs"
+        score = max(abs(cmp[m][0]) / om.TOL[m] for m in om.METRICS)
+        out.append((cell, word, ok, status, fmt_rel(cmp), score))
+    return out
+
+
+def summary_table(assessed):
+    """Algorithms x maps: cells within tolerance / cells measured (+ known differences)."""
+    maps = sorted({a[0][0][0] for a in assessed}, key=str.lower)
+    algs = sorted({a[0][0][2] for a in assessed})
+    count = {}
+    for (key, *_), _, ok, status, _, _ in assessed:
+        c = count.setdefault((key[2], key[0]), [0, 0, 0])
+        c[0] += 1
+        c[1] += ok
+        c[2] += status == "known"
+    lines = ["| algorithm | " + " | ".join(maps) + " | all |",
+             "|---|" + "---|" * (len(maps) + 1)]
+    for alg in algs:
+        row, tot = [], [0, 0, 0]
+        for m in maps:
+            c = count.get((alg, m))
+            if not c:
+                row.append("")
+                continue
+            tot = [t + x for t, x in zip(tot, c)]
+            row.append(f"{c[1]}/{c[0]}" + (f" (+{c[2]} known)" if c[2] else ""))
+        all_txt = f"{tot[1]}/{tot[0]}" + (f" (+{tot[2]} known)" if tot[2] else "")
+        lines.append(f"| [{alg}](#{alg.lower()}) | " + " | ".join(row) + f" | {all_txt} |")
+    return lines
+
+
+def cell_tables(assessed, seeds):
+    """One section per algorithm, a row per cell."""
+    lines, current = [], None
+    for ((map_name, robots, alg, _), orig, graph, ros, draws), word, _, _, rel, _ in assessed:
+        if alg != current:
+            current = alg
+            lines += ["", f"### {alg}", "", HEADER.format(seeds=seeds),
+                      "|---|---|---|---|---|---|---|---|---|"]
+        ref, got = om.mean_figures(orig), om.mean_figures(graph)
         ros_txt = ros_cmp = ""
         if ros:
             r = om.mean_figures(ros)
             ros_txt = f"{fmt(r)} ({len(ros)})"
             ros_cmp = fmt_rel(om.compare(ref, r))
         spread = f"{min(r[1] for r in orig):.0f}-{max(r[1] for r in orig):.0f}"
-        lines.append(f"| {map_name} | {robots} | {alg} | {len(orig)}: {fmt(ref)} | {spread} "
-                     f"| {fmt(got)} | {fmt_rel(cmp)} | {word} | {ros_txt} | {ros_cmp} |")
-    return lines, (n_in, n_known), n_cells, sorted(worst, reverse=True), status
+        graph_txt = fmt(got) + (f" (draws at x{draws:.1f})" if draws else "")
+        lines.append(f"| {map_name} | {robots} | {len(orig)}: {fmt(ref)} | {spread} "
+                     f"| {graph_txt} | {rel} | {word} | {ros_txt} | {ros_cmp} |")
+    return lines
 
 
 def page(cells, known, seeds, runs_path):
-    lines, (n_in, n_known), n_cells, worst, status = table(cells, known, seeds)
+    assessed = assess(cells, known)
+    n_cells = len(assessed)
+    n_in = sum(a[2] for a in assessed)
+    n_known = sum(a[3] == "known" for a in assessed)
+    status = [(k[0], k[1], k[2], st, rel) for (k, *_), _, _, st, rel, _ in assessed]
+    worst = sorted(((a[5], f"{a[0][0][0]} {a[0][0][1]} {a[0][0][2]}", a[4]) for a in assessed),
+                   reverse=True)
     durations = sorted({k[3] for k, *_ in cells})
     rel = os.path.relpath(runs_path, ROOT)
     out = [
@@ -123,18 +174,27 @@ def page(cells, known, seeds, runs_path):
         f"mean. Within tolerance: average {om.TOL['avg']:.0%}, maximum "
         f"{om.TOL['max']:.0%}, visits {om.TOL['visits']:.0%}; \"known\" marks a difference "
         "documented in the known-differences file beside the runs (its reason is below). "
-        "The ROS-mode column holds runs of our agents in the abstract world where they exist.",
+        "The ROS-mode column holds runs of our agents in the abstract world where they exist. "
+        "The original's RAND agent reseeds its generator from the wall clock before every "
+        "draw, so its figures depend on the pace it ran at ([fidelity_draws.md]"
+        "(fidelity_draws.md)); graph mode's RAND runs here emulate those draws at the pace "
+        "the original's runs of the cell reached (\"draws at x...\"), the other algorithms "
+        "use this project's seeded draws.",
         "",
         f"**{n_in} of {n_cells} cells within tolerance**; {n_known} more differ only in "
         "documented ways (known differences), "
         f"{n_cells - n_in - n_known} in undocumented ways.",
         "",
-        *lines,
+        "## Summary: cells within tolerance / cells measured",
+        "",
+        *summary_table(assessed),
         "",
         "## Largest differences (in units of the tolerance)",
         "",
     ]
     out += [f"- {name}: {rel_txt}" for score, name, rel_txt in worst[:8] if score > 1]
+    out += ["", "## Cells"]
+    out += cell_tables(assessed, seeds)
     if known:
         out += ["", "## Known differences", ""]
         out += [f"- **{k[0]} {k[1]} {k[2]}** (metric {k[3]}): {v}" for k, v in known.items()]
@@ -165,8 +225,9 @@ def main():
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:
             json.dump([{"cell": list(k), "original": o, "graph": g, "ros": r,
+                        "draws_pace": d,
                         "original_sd": [statistics.pstdev(x[i] for x in o) for i in range(3)]}
-                       for k, o, g, r in cells], f)
+                       for k, o, g, r, d in cells], f)
 
 
 if __name__ == "__main__":
