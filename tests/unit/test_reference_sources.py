@@ -111,3 +111,40 @@ def test_added_algorithm_covers_the_whole_grid_and_keeps_its_label(tmp_path):
     rows = _table_rows(docs.files["grid.md"], 1)
     assert rows["POLICY mine@0123abcd"][2].startswith("7.0") and "CR" in rows
     assert docs.total == len(base) + len(one)
+
+
+def test_relink_gives_the_pages_a_new_status_file_would(tmp_path):
+    """Relinking pages made with an old status file to a new one gives, page for page, what
+    building them with the new file gives (the index only says it was relinked); a page
+    without the column, a folder without pages and a bad status file are one-line errors and
+    write nothing."""
+    base, _, _ = _pair(tmp_path)
+    old, new = tmp_path / "old.csv", tmp_path / "new.csv"
+    fidelity_status.write_status(str(old), [("grid", 2, "DTAG", "known", "-16% / -94%")])
+    fidelity_status.write_status(str(new), [("grid", 2, "DTAG", "within", "-1% / -4%"),
+                                            ("grid", 1, "CR", "differs", "+30% / +2% / +0%")])
+    out = tmp_path / "pages"
+    rd.write_docs(rd.build_reference_docs(base, "cmd", fidelity_file=str(old)), str(out))
+    rd.relink_docs(str(out), str(new))
+    fresh = rd.build_reference_docs(base, "cmd", fidelity_file=str(new))
+    for name, content in fresh.files.items():
+        if name.endswith(".md") and name != "README.md":
+            got = (out / name).read_text()
+            # the generation line names the date of each build; the tables must agree
+            assert got.split("\n")[3:] == content.split("\n")[3:], name
+    assert _table_rows((out / "grid.md").read_text(), 1)["CR"][-1] == \
+        "[differs](../fidelity_matrix.md)"
+    assert (out / "README.md").read_text().count(rd.RELINK_MARK) == 1
+    rd.relink_docs(str(out), str(new))                       # again: still one such line
+    assert (out / "README.md").read_text().count(rd.RELINK_MARK) == 1
+
+    plain = tmp_path / "plain"
+    rd.write_docs(rd.build_reference_docs(base, "cmd"), str(plain))
+    before = {p.name: p.read_bytes() for p in plain.iterdir()}
+    for folder, status, msg in ((plain, new, "no column 'vs original'"),
+                                (tmp_path / "none", new, "no reference tables here"),
+                                (out, tmp_path / "missing.csv", "cannot read")):
+        with pytest.raises(PatrolInputError, match=msg) as e:
+            rd.relink_docs(str(folder), str(status))
+        assert "\n" not in str(e.value)
+    assert {p.name: p.read_bytes() for p in plain.iterdir()} == before

@@ -18,6 +18,7 @@ The metric definitions are those of ``docs/metrics.md``.
 import datetime
 import io
 import os
+import re
 import shlex
 import sys
 from dataclasses import dataclass, field
@@ -328,6 +329,83 @@ def build_reference_docs(campaign_dir: str, command: str,
     return docs
 
 
+_ROBOTS_HEADING = re.compile(r"^## (\d+) robots?$")
+#: the line of the index that says when the column "vs original" was last relinked
+RELINK_MARK = "The column \"vs original\" was relinked"
+
+
+def relink_fidelity(text: str, map_name: str, fidelity, link: str = FIDELITY_LINK) -> str:
+    """A map page (``text``, as :func:`build_reference_docs` wrote it with a fidelity file)
+    whose column "vs original" says what ``fidelity`` (a loaded status,
+    :func:`patrolling_sim.report.fidelity_status.load_status`) says now; every other
+    character is kept. The matrix grows without the campaign changing, so the links can be
+    brought up to date without the campaign's runs.
+
+    Raises:
+        PatrolInputError: the page has no table with a column "vs original".
+    """
+    out, robots, in_table, tables = [], None, False, 0
+    for line in text.split("\n"):
+        m = _ROBOTS_HEADING.match(line)
+        if m:
+            robots, in_table = int(m.group(1)), False
+        elif line.startswith("| algorithm |"):
+            in_table = line.endswith(" vs original |")
+            tables += in_table
+        elif in_table and line.startswith("| ") and robots is not None:
+            cells = line.split("|")
+            name = cells[1].strip()
+            if name and not name.startswith("*"):      # not a reference row
+                text_ = fidelity_status.cell_text(fidelity, map_name, robots, name.split()[0],
+                                                  link)
+                cells[-2] = f" {text_} "
+                line = "|".join(cells)
+        elif not line.startswith("|"):
+            in_table = False
+        out.append(line)
+    if not tables:
+        raise PatrolInputError(f"{map_name}: the page has no column 'vs original' (made "
+                               "without --fidelity)")
+    return "\n".join(out)
+
+
+def relink_docs(folder: str, fidelity_file: str, now=None) -> List[str]:
+    """Relink the column "vs original" of every map page under ``folder`` (the pages
+    :func:`write_docs` wrote, their ``README.md`` index among them) to ``fidelity_file``, and
+    say so in the index. Returns the pages rewritten; nothing is written if any page fails.
+
+    Raises:
+        PatrolInputError: one line, for a folder without reference pages, a bad status file or
+            a page without the column.
+    """
+    fidelity = fidelity_status.load_status(fidelity_file)
+    index = os.path.join(folder, "README.md")
+    if not os.path.isfile(index):
+        raise PatrolInputError(f"{folder}: no reference tables here (no README.md)")
+    with open(index, encoding="utf-8") as f:
+        maps = re.findall(r"^\| \[([^\]]+)\]\(\1\.md\) \|", f.read(), flags=re.M)
+    if not maps:
+        raise PatrolInputError(f"{index}: lists no map page")
+    docs = ReferenceDocs(total=0, done=0, excluded=0)
+    for m in maps:
+        path = os.path.join(folder, f"{m}.md")
+        try:
+            with open(path, encoding="utf-8") as f:
+                docs.files[f"{m}.md"] = relink_fidelity(f.read(), m, fidelity)
+        except OSError as e:
+            raise PatrolInputError(f"{path}: cannot read the page ({e.strerror})")
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    with open(index, encoding="utf-8") as f:
+        lines = [ln for ln in f.read().rstrip("\n").split("\n")
+                 if not ln.startswith(RELINK_MARK)]
+    lines += ["", f"{RELINK_MARK} to `{fidelity_file}` on {now.strftime('%Y-%m-%d %H:%M UTC')} "
+              "(`scripts/reference_docs.py --relink " + folder + " --fidelity "
+              + fidelity_file + "`): the runs and their figures are those above."]
+    docs.files["README.md"] = "\n".join(ln for i, ln in enumerate(lines)
+                                        if ln or not (i and lines[i - 1] == "")) + "\n"
+    return write_docs(docs, folder)
+
+
 def write_docs(docs: ReferenceDocs, out: str) -> List[str]:
     """Write every page into ``out`` (created); each file replaced atomically."""
     os.makedirs(out, exist_ok=True)
@@ -348,7 +426,8 @@ def main(argv=None):
         ap = CliParser(prog="reference_docs.py", description=(
             "Write the reference tables (docs/reference/: one page and one figure per map, an "
             "index) from a campaign folder's runs.csv (see docs/campaigns.md)."))
-        ap.add_argument("campaign_dir", help="campaign folder (holds runs.csv)")
+        ap.add_argument("campaign_dir", nargs="?",
+                        help="campaign folder (holds runs.csv); not with --relink")
         ap.add_argument("--out", default=os.path.join("docs", "reference"),
                         help="output folder (default: docs/reference)")
         ap.add_argument("--causes", default=None, metavar="FILE",
@@ -360,7 +439,19 @@ def main(argv=None):
         ap.add_argument("--fidelity", default=None, metavar="FILE",
                         help="the fidelity matrix's status CSV (bench/fidelity_matrix.py "
                         "--status): adds a column 'vs original' linked to the matrix")
+        ap.add_argument("--relink", default=None, metavar="DIR",
+                        help="no campaign: rewrite only the column 'vs original' of the pages "
+                        "in DIR from --fidelity FILE (the fidelity matrix grew)")
         a = ap.parse_args(args)
+        if a.relink:
+            if a.campaign_dir or not a.fidelity:
+                ap.error("--relink DIR takes --fidelity FILE and no campaign folder")
+            written = relink_docs(a.relink, a.fidelity)
+            print(f"reference_docs.py: column 'vs original' relinked in {len(written)} files "
+                  f"of {a.relink}")
+            return 0
+        if not a.campaign_dir:
+            ap.error("the following arguments are required: campaign_dir")
         command = shlex.join(["scripts/reference_docs.py"] + list(args))
         docs = build_reference_docs(a.campaign_dir, command, causes_file=a.causes,
                                     replace=a.replace, fidelity_file=a.fidelity)
