@@ -23,7 +23,8 @@ first on ROS_PACKAGE_PATH) whose graph for the map is this project's. ``--their-
 turns that off. No file of the original is changed.
 
 ``--summary FILE`` appends one compact row per run to a CSV (tests/unit/original_matrix.py,
-``COLUMNS``): the figures, the visits per vertex, the pace and the load when the run began.
+``COLUMNS``): the figures, the visits per vertex, the pace and the load when the run began,
+and which agents' processes had ended before the run did (their robots stood still).
 
 The original's agents are not part of this repository. Build them yourself from the
 original's public source (version 2.2.4) in a catkin workspace of their own, package name
@@ -73,6 +74,10 @@ BINARIES = {"RAND": "Random", "CR": "Conscientious_Reactive",
 TEAM_SIZE_ARG = ("GBS", "SEBS", "CBLS")
 #: wall s to wait for a run (x30, 600 s: about 30 s) before it is stopped and reported
 RUN_LIMIT = 900.0
+#: wall s after the agents start within which the first visit must come: now and then some
+#: of the original's agents never report that they found their move_base server (roscpp's
+#: actionlib under sim time), the monitor waits for them for good, and the run is stopped
+START_LIMIT = 120.0
 
 
 def world_launch(alg, seed, speedup, results_dir, env, exp):
@@ -161,6 +166,15 @@ def wait_sim_time(world, env, log):
     raise RuntimeError(f"/use_sim_time not set after 60 s, see {log}")
 
 
+def _visited(results_dir):
+    """Some visit report is in the run's visits file (the run is under way)."""
+    for path in glob.glob(os.path.join(results_dir, "**", "*_visits.csv"), recursive=True):
+        with open(path, encoding="utf-8") as f:
+            if len(f.readlines()) > 1:
+                return True
+    return False
+
+
 def run_original(orig_env, pkg, binary, alg, seed, speedup, results_dir, exp):
     """One run of the original's agents (``orig_env``: their workspace's environment,
     ``pkg``: their package folder, ``exp``: (map, robots, duration, dead robot timeout));
@@ -190,8 +204,16 @@ def run_original(orig_env, pkg, binary, alg, seed, speedup, results_dir, exp):
         # its info.csv is there (its last file): a world shutting down while agents of another
         # launch are still connected sometimes did not exit on SIGINT (roslaunch then kills it)
         t0 = time.monotonic()
+        exited = None
         while world.poll() is None and time.monotonic() - t0 < RUN_LIMIT:
+            if time.monotonic() - t0 > START_LIMIT and not _visited(results_dir):
+                print(f"  run {seed}: no visit {START_LIMIT:.0f} wall s after the agents "
+                      "started (some never announced), stopped", file=sys.stderr)
+                break
             if glob.glob(os.path.join(results_dir, "**", "*_info.csv"), recursive=True):
+                # agents whose process ended before the run did (the original's CBLS agent
+                # exits when its learning step finds no arc): their robots stood still
+                exited = [i for i, p in enumerate(agents) if p.poll() is not None]
                 for p in agents:
                     stop(p)
                 try:
@@ -208,7 +230,9 @@ def run_original(orig_env, pkg, binary, alg, seed, speedup, results_dir, exp):
         stop(world, grace=30.0)
         for f in logs:
             f.close()
-    return read_results(AbstractRun(world.returncode, ""), results_dir)
+    run = read_results(AbstractRun(world.returncode, ""), results_dir)
+    run.exited = exited
+    return run
 
 
 def summary(label, runs):
@@ -298,7 +322,8 @@ def one_run(a, who, k, d, ctx):
             f.write(r.output)
     if a.summary:
         agents = "original" if who == "original" else f"ours_{a.ours}"
-        row = original_matrix.summary_row(d, agents, a.alg, k, a.speedup, a.duration, load1)
+        row = original_matrix.summary_row(d, agents, a.alg, k, a.speedup, a.duration, load1,
+                                          exited=getattr(r, "exited", None))
         if row:
             original_matrix.append_rows(a.summary, [row])
     return r

@@ -12,11 +12,14 @@ bench/original_agents.py, one run per call, up to ``--parallel`` runs side by si
    average 10 %, maximum 25 %, visits 10 % of the mean) is less than three standard errors
    of the mean of its runs, up to ``--max-runs`` runs.
 
-Each run writes its row to a CSV of its own under ``--work``; a finished run's row is appended
-to the summary under a file lock, so several queues (or a queue stopped with Ctrl-C and
-started again) never write half a row and never make a run twice. The original's MSP agent
-needs its route files, which the original ships (and which fit today's graphs) for grid
-only: MSP cells on other maps are skipped with a note.
+Each run writes its row to a CSV of its own under ``--work``; a complete run's row (the
+monitor's timeout after the whole duration) is appended to the summary under a file lock, so
+a queue stopped and started again goes on where it was, and several queues on disjoint cells
+(e.g. one per team size) can share the summary. A run in which an agent's process ended
+early (the original's CBLS agent can crash) is stored but does not count: the cell gets
+another run. A cell whose runs keep failing is given up after ``--max-runs`` + 2 tries. The
+original's MSP agent needs its route files, which the original ships (and which fit today's
+graphs) for grid only, so MSP cells are planned on grid only.
 
 Usage:
     bench/original_matrix_queue.py --orig-ws PATH [--maps ...] [--robots 4 8 2 12]
@@ -61,7 +64,7 @@ def existing(summary, duration):
             continue
         key = (r["map"], r["robots"], r["algorithm"])
         last[key] = max(last.get(key, -1), r["run"])
-        if om.complete(r):
+        if om.complete(r) and not om.crashed(r):      # a crashed agent's run: make another
             runs.setdefault(key, []).append((r["avg_idleness"], r["max_idleness"], r["visits"]))
     return runs, last
 
@@ -83,9 +86,13 @@ def needs_more(runs, max_runs):
 
 
 def append_locked(summary, path):
-    """Append the rows of the CSV ``path`` to ``summary`` under an exclusive lock."""
+    """Append the rows of the CSV ``path`` that are complete runs (the monitor's timeout
+    after the whole duration: the summary holds only such runs; a run stopped before, e.g.
+    because some agents never started, stays in its own CSV) to ``summary`` under an
+    exclusive lock."""
     with open(path, newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
+        rows = [r for r in csv.DictReader(f) if r["termination"] == "TIMEOUT"
+                and float(r["sim_duration"] or 0) >= float(r["duration"])]
     if not rows:
         return 0
     with open(summary + ".lock", "w") as lock:

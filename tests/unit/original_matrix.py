@@ -12,8 +12,11 @@ A summary row (:data:`COLUMNS`) holds one run: who ran it (``agents``: ``origina
 original's agents, ``ours_separate`` / ``ours_shared`` for ours in ROS mode), the map, team
 size, algorithm, run index, pace and duration asked for, the one-minute load average when it
 started, what the monitor measured (average idleness = mean of the idleness samples, maximum
-idleness, visits = idleness samples) and the visit reports per vertex after GO (the first
-visit of a vertex included, so 0 means never visited).
+idleness, visits = idleness samples), the visit reports per vertex after GO (the first
+visit of a vertex included, so 0 means never visited) and the robots whose agent process had
+ended before the run did (``agents_exited``: space-separated ids, empty for none, ``-`` where
+the run did not record it). A run with such a robot is the original's crash, not its
+patrolling: :func:`cells` leaves it out (:func:`crashed` names such runs).
 """
 import csv
 import dataclasses
@@ -25,7 +28,7 @@ RUNS = os.path.join(DATA, "runs.csv")
 KNOWN = os.path.join(DATA, "known_differences.csv")
 COLUMNS = ("agents", "map", "robots", "algorithm", "run", "speedup", "duration", "load1",
            "sim_duration", "real_duration", "termination", "start_vertices", "avg_idleness",
-           "max_idleness", "visits", "visit_counts")
+           "max_idleness", "visits", "visit_counts", "agents_exited")
 #: relative tolerances of a cell's comparison with the mean of the original's runs
 TOL = {"avg": 0.10, "max": 0.25, "visits": 0.10}
 METRICS = ("avg", "max", "visits")
@@ -38,9 +41,10 @@ SEEDS = (0, 1)
 WALLCLOCK_DRAWS = ("RAND",)
 
 
-def summary_row(results_dir, agents, alg, run, speedup, duration, load1):
+def summary_row(results_dir, agents, alg, run, speedup, duration, load1, exited=None):
     """The summary row (dict keyed by :data:`COLUMNS`) of the one run under ``results_dir``,
-    or None if it has no complete set of result files (no info.csv)."""
+    or None if it has no complete set of result files (no info.csv). ``exited``: the ids of
+    the robots whose agent process ended before the run did (None: not recorded)."""
     import glob
     from patrolling_sim.model.graph import PatrolGraph
     from patrolling_sim.common import paths
@@ -69,7 +73,8 @@ def summary_row(results_dir, agents, alg, run, speedup, duration, load1):
             "start_vertices": " ".join(map(str, starts)) if starts else "",
             "avg_idleness": f"{float(samples.mean()):.3f}" if len(samples) else "",
             "max_idleness": f"{i['idl_max']:g}", "visits": i["total_visits"],
-            "visit_counts": " ".join(map(str, counts)) if counts is not None else ""}
+            "visit_counts": " ".join(map(str, counts)) if counts is not None else "",
+            "agents_exited": "-" if exited is None else " ".join(map(str, exited))}
 
 
 def _start_vertices(prefix):
@@ -108,6 +113,8 @@ def read_rows(path=RUNS):
                 r[k] = float(r[k]) if r[k] != "" else None
             r["visit_counts"] = [int(c) for c in r["visit_counts"].split()]
             r["start_vertices"] = [int(c) for c in r["start_vertices"].split()]
+            ex = (r.get("agents_exited") or "-").strip()
+            r["agents_exited"] = None if ex == "-" else [int(c) for c in ex.split()]
             out.append(r)
     return out
 
@@ -117,12 +124,29 @@ def complete(row):
     return row["termination"] == "TIMEOUT" and row["sim_duration"] >= row["duration"]
 
 
-def cells(rows, agents="original"):
-    """{(map, robots, algorithm, duration): [(avg, max, visits)]} of the complete runs of
-    ``agents``, in the order first seen."""
+def crashed(row):
+    """Some robot's agent process ended before the run did (the row records it)."""
+    return bool(row["agents_exited"])
+
+
+def crashes(rows, agents="original"):
+    """{(map, robots, algorithm, duration): number of complete runs left out because an
+    agent process ended early}."""
     out = {}
     for r in rows:
-        if r["agents"] == agents and complete(r):
+        if r["agents"] == agents and complete(r) and crashed(r):
+            key = (r["map"], r["robots"], r["algorithm"], r["duration"])
+            out[key] = out.get(key, 0) + 1
+    return out
+
+
+def cells(rows, agents="original"):
+    """{(map, robots, algorithm, duration): [(avg, max, visits)]} of the complete runs of
+    ``agents`` in which no agent process ended early (:func:`crashed`), in the order first
+    seen."""
+    out = {}
+    for r in rows:
+        if r["agents"] == agents and complete(r) and not crashed(r):
             key = (r["map"], r["robots"], r["algorithm"], r["duration"])
             out.setdefault(key, []).append((r["avg_idleness"], r["max_idleness"], r["visits"]))
     return out
@@ -135,7 +159,7 @@ def paces(rows, agents="original"):
     advanced in simulated time."""
     out = {}
     for r in rows:
-        if r["agents"] == agents and complete(r) and r["real_duration"]:
+        if r["agents"] == agents and complete(r) and not crashed(r) and r["real_duration"]:
             key = (r["map"], r["robots"], r["algorithm"], r["duration"])
             out.setdefault(key, []).append(r["sim_duration"] / r["real_duration"])
     return {k: statistics.mean(v) for k, v in out.items()}
