@@ -1,6 +1,7 @@
 #!/usr/bin/python3
-"""Run the ORIGINAL patrolling_sim's C++ agents in this project's abstract world, with this
-project's monitor (docs/fidelity.md, "The original's own agents in the abstract world").
+"""Run the ORIGINAL patrolling_sim's C++ agents in this project's abstract world (or, with
+``--nav spqrel_nav_lite``, on the full stack), with this project's monitor
+(docs/fidelity.md, "The original's own agents in the abstract world").
 
 The reference runs in tests/unit/data/original_runs/ are two per algorithm on grid only, too
 few for a figure that spreads as widely from run to run as DTAP's maximum idleness. This script
@@ -38,6 +39,7 @@ With ``--ours shared|separate`` every run of the original is followed by a run o
 Usage:
     bench/original_agents.py --orig-ws PATH --alg DTAP [--map grid] [--robots 4]
                              [--duration 600] [--runs 20] [--first 0] [--speedup 30]
+                             [--nav abstract|spqrel_nav_lite [--loc fake_localization|AMCL]]
                              [--ours separate [--ours-only]] [--out DIR] [--json FILE]
                              [--summary CSV]
 """
@@ -83,10 +85,11 @@ START_LIMIT = 120.0
 def world_launch(alg, seed, speedup, results_dir, env, exp):
     """Write the experiment's launch file with the runner (``--dry-run``) and a copy without
     our agents; return the copy's path. ``exp``: (map, robots, duration, dead robot
-    timeout)."""
-    map_name, robots, duration, dead = exp
+    timeout[, the runner's world arguments: ``--nav abstract`` by default])."""
+    map_name, robots, duration, dead = exp[:4]
+    world = list(exp[4]) if len(exp) > 4 else ["--nav", "abstract"]
     cmd = ["/usr/bin/python3", START, "--map", map_name, "--robots", str(robots), "--alg", alg,
-           "--nav", "abstract", "--timeout", f"{duration:g}", "--speedup", f"{speedup:g}",
+           *world, "--timeout", f"{duration:g}", "--speedup", f"{speedup:g}",
            "--processes", "separate", "--seed", str(seed), "--results-dir", results_dir,
            "--dead-robot-timeout", f"{dead:g}", "--dry-run"]
     r = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -268,6 +271,12 @@ def parse_args():
                     help="after each run of the original, one of our agents (seed = index)")
     ap.add_argument("--ours-only", action="store_true",
                     help="with --ours: only our agents' runs (the original's were made before)")
+    ap.add_argument("--nav", default="abstract", choices=("abstract", "spqrel_nav_lite"),
+                    help="the world: the abstract world (default) or the full stack (the "
+                    "Box2D simulator and this project's navigation, one per robot)")
+    ap.add_argument("--loc", default="fake_localization",
+                    choices=("fake_localization", "AMCL"),
+                    help="the full stack's localiser (default fake_localization)")
     ap.add_argument("--their-graph", action="store_true",
                     help="the agents read the original's own graph file even where it differs "
                          "from ours")
@@ -282,6 +291,9 @@ def parse_args():
             ap.error(f"argument --{name}: must be >= {low}, got {getattr(a, name)}")
     if a.ours_only and not a.ours:
         ap.error("argument --ours-only: needs --ours")
+    if a.ours and a.nav != "abstract":
+        ap.error("argument --ours: runs of ours beside the original's in the abstract world "
+                 "only (run the full stack's with scripts/start_experiments.py)")
     for name in ("speedup", "duration"):
         if getattr(a, name) <= 0:
             ap.error(f"argument --{name}: must be > 0, got {getattr(a, name):g}")
@@ -303,7 +315,8 @@ def parse_args():
 def one_run(a, who, k, d, ctx):
     """Run ``who`` (original / ours) with index ``k`` in folder ``d``; print its figures and
     append its summary row; returns the run (an AbstractRun)."""
-    exp = (a.map, a.robots, a.duration, a.dead_robot_timeout)
+    exp = (a.map, a.robots, a.duration, a.dead_robot_timeout,
+           ["--nav", a.nav] + (["--loc", a.loc] if a.nav != "abstract" else []))
     load1 = os.getloadavg()[0]
     if who == "original":
         r = run_original(ctx["env"], ctx["pkg"], ctx["binary"], a.alg, k, a.speedup, d, exp)

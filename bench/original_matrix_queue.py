@@ -31,6 +31,7 @@ import csv
 import fcntl
 import math
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -107,6 +108,8 @@ def one_run(a, cell, index):
     tag = f"{map_name}_{robots}_{alg}_{index:02d}"
     out = os.path.join(a.work, tag)
     rows = os.path.join(a.work, tag + ".csv")
+    # a folder left by a run that was stopped would hold a second set of result files
+    shutil.rmtree(out, ignore_errors=True)
     if os.path.exists(rows):
         os.remove(rows)
     cmd = ["nice", "-n", str(a.nice), "/usr/bin/python3",

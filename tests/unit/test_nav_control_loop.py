@@ -308,3 +308,51 @@ def test_the_control_loop_plans_in_its_planning_thread_and_wakes_when_done(fail)
             next(task)
         assert end.value.value == [(0.0, 0.0), (1.0, 2.0)]
     loop._planner.shutdown()
+
+
+class FirstCycle(GoalExecution):
+    """GoalExecution with a known pose and a planner that records when it is asked."""
+
+    robot_ns = "/robot_0/"
+    global_frame = "map"
+    frequency = 10.0
+    localization_timeout = 5.0
+    control_loop = None
+
+    def __init__(self):
+        self.events = []
+        outer = self
+
+        class FeedbackServer(Server):
+            def is_preempt_requested(self):
+                return False
+
+            def publish_feedback(self, fb):
+                p = fb.base_position.pose.position
+                outer.events.append(("feedback", p.x, p.y))
+        self.server = FeedbackServer()
+
+    def pose(self):
+        return (3.0, 4.0, 0.0)
+
+    def laser(self, pose):
+        self.events.append(("laser",))
+        return None, False
+
+    def make_plan(self, pose, goal, **kwargs):
+        self.events.append(("plan",))
+        raise move_base_goal.Aborted("stop here")
+
+
+def test_a_goal_publishes_the_robot_s_pose_as_feedback_before_it_plans(clock):
+    """As the stock move_base, whose every control cycle, the first included, begins with a
+    feedback: an agent hears from its new goal at once (the original's agents clear their
+    interference flag on a feedback and re-check it right after resending a goal)."""
+    node = FirstCycle()
+    goal = MoveBaseGoal()
+    goal.target_pose.header.frame_id = "map"
+    goal.target_pose.pose.position.x = 10.0
+    with pytest.raises(move_base_goal.Aborted):
+        next(node.run_goal(goal))
+    assert node.events[0] == ("feedback", 3.0, 4.0)
+    assert ("plan",) in node.events

@@ -163,6 +163,16 @@ class GoalExecution:
                 return self.preempted()
             yield rate.sleep()
             pose = self.pose()
+        # the stock move_base begins every control cycle, the goal's first included, by
+        # publishing the robot's pose as feedback, before it plans: an agent hears from a new
+        # goal at once (the original's agents clear their interference flag on a feedback;
+        # they re-check it 1/30 s after a resend and, without one, stopped again every 3 s)
+        feedback = MoveBaseFeedback()
+        feedback.base_position.header.frame_id = self.global_frame
+        last_feedback = rospy.get_time()
+        feedback.base_position.header.stamp = rospy.Time.from_sec(last_feedback)
+        fill_pose(feedback.base_position.pose, pose)
+        self.server.publish_feedback(feedback)
         self.laser(pose)
         path = yield from self._first_plan(pose, goal)
         timeout = self.goal_timeout if self.goal_timeout > 0 else \
@@ -170,9 +180,6 @@ class GoalExecution:
         deadline = start + timeout
         index = 0
         progress = GoalProgress()
-        feedback = MoveBaseFeedback()
-        feedback.base_position.header.frame_id = self.global_frame
-        last_feedback = -math.inf
         while not rospy.is_shutdown():
             if self.server.is_preempt_requested():
                 return self.preempted()
