@@ -53,13 +53,13 @@ def verdict(cmp, reasons):
 
 
 def measure(rows, seeds):
-    """[(key, original runs, graph runs, ROS runs, draws pace)] for every cell of the
-    original, in the order algorithm, map, team size."""
+    """[(key, original runs, graph runs, ROS runs, original runs left out)] for every cell of
+    the original, in the order algorithm, map, team size."""
     ros = {}
     for who in ("ours_separate", "ours_shared"):
         for k, v in om.cells(rows, who).items():
             ros.setdefault(k, []).extend(v)
-    pace_by_cell = om.paces(rows)
+    crashes = om.crashes(rows)
     out = []
 
     def order(item):
@@ -68,10 +68,8 @@ def measure(rows, seeds):
 
     for key, orig in sorted(om.cells(rows).items(), key=order):
         map_name, robots, alg, duration = key
-        draws = om.draws_pace(key, pace_by_cell)
-        graph = [om.graph_run(map_name, robots, alg, s, duration, draws)[:3]
-                 for s in range(seeds)]
-        out.append((key, orig, graph, ros.get(key, []), draws))
+        graph = [om.graph_run(map_name, robots, alg, s, duration)[:3] for s in range(seeds)]
+        out.append((key, orig, graph, ros.get(key, []), crashes.get(key, 0)))
         print(f"  {map_name} {robots} {alg}: done", file=sys.stderr, flush=True)
     return out
 
@@ -125,7 +123,7 @@ def summary_table(assessed):
 def cell_tables(assessed, seeds):
     """One section per algorithm, a row per cell."""
     lines, current = [], None
-    for ((map_name, robots, alg, _), orig, graph, ros, draws), word, _, _, rel, _ in assessed:
+    for ((map_name, robots, alg, _), orig, graph, ros, crashed), word, _, _, rel, _ in assessed:
         if alg != current:
             current = alg
             lines += ["", f"### {alg}", "", HEADER.format(seeds=seeds),
@@ -137,9 +135,9 @@ def cell_tables(assessed, seeds):
             ros_txt = f"{fmt(r)} ({len(ros)})"
             ros_cmp = fmt_rel(om.compare(ref, r))
         spread = f"{min(r[1] for r in orig):.0f}-{max(r[1] for r in orig):.0f}"
-        graph_txt = fmt(got) + (f" (draws at x{draws:.1f})" if draws else "")
-        lines.append(f"| {map_name} | {robots} | {len(orig)}: {fmt(ref)} | {spread} "
-                     f"| {graph_txt} | {rel} | {word} | {ros_txt} | {ros_cmp} |")
+        runs = f"{len(orig)}" + (f" (+{crashed} left out)" if crashed else "")
+        lines.append(f"| {map_name} | {robots} | {runs}: {fmt(ref)} | {spread} "
+                     f"| {fmt(got)} | {rel} | {word} | {ros_txt} | {ros_cmp} |")
     return lines
 
 
@@ -175,11 +173,11 @@ def page(cells, known, seeds, runs_path):
         f"{om.TOL['max']:.0%}, visits {om.TOL['visits']:.0%}; \"known\" marks a difference "
         "documented in the known-differences file beside the runs (its reason is below). "
         "The ROS-mode column holds runs of our agents in the abstract world where they exist. "
-        "The original's RAND agent reseeds its generator from the wall clock before every "
-        "draw, so its figures depend on the pace it ran at ([fidelity_draws.md]"
-        "(fidelity_draws.md)); graph mode's RAND runs here emulate those draws at the pace "
-        "the original's runs of the cell reached (\"draws at x...\"), the other algorithms "
-        "use this project's seeded draws.",
+        "\"+n left out\": runs of the original in which an agent's process ended before the "
+        "run did (the original's CBLS agent crashes now and then), not averaged. The "
+        "original's RAND agent reseeds its generator from the wall clock before every draw, "
+        "so its figures depend on the pace it ran at ([fidelity_draws.md]"
+        "(fidelity_draws.md)); graph mode draws from seeded generators.",
         "",
         f"**{n_in} of {n_cells} cells within tolerance**; {n_known} more differ only in "
         "documented ways (known differences), "
@@ -225,7 +223,7 @@ def main():
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:
             json.dump([{"cell": list(k), "original": o, "graph": g, "ros": r,
-                        "draws_pace": d,
+                        "left_out": d,
                         "original_sd": [statistics.pstdev(x[i] for x in o) for i in range(3)]}
                        for k, o, g, r, d in cells], f)
 

@@ -34,11 +34,6 @@ TOL = {"avg": 0.10, "max": 0.25, "visits": 0.10}
 METRICS = ("avg", "max", "visits")
 #: our graph mode's seeds for one cell (two: the DTA cells cost 1-4 s of CPU per run)
 SEEDS = (0, 1)
-#: algorithms whose original agents reseed rand() from the wall clock before a draw in a way
-#: that changes their figures beyond the tolerances (docs/fidelity_draws.md: RAND only; the
-#: others draw only to break rare ties). Their cells are compared with graph mode emulating
-#: those draws at the pace the original's runs reached (:func:`paces`).
-WALLCLOCK_DRAWS = ("RAND",)
 
 
 def summary_row(results_dir, agents, alg, run, speedup, duration, load1, exited=None):
@@ -152,41 +147,18 @@ def cells(rows, agents="original"):
     return out
 
 
-def paces(rows, agents="original"):
-    """{(map, robots, algorithm, duration): mean pace} of the complete runs of ``agents``: a
-    run's pace is its simulated seconds per wall second (``sim_duration / real_duration``,
-    the start-up before GO included), the rate at which the original's wall-clock draws
-    advanced in simulated time."""
-    out = {}
-    for r in rows:
-        if r["agents"] == agents and complete(r) and not crashed(r) and r["real_duration"]:
-            key = (r["map"], r["robots"], r["algorithm"], r["duration"])
-            out.setdefault(key, []).append(r["sim_duration"] / r["real_duration"])
-    return {k: statistics.mean(v) for k, v in out.items()}
-
-
-def draws_pace(key, pace_by_cell):
-    """The pace at which graph mode emulates the original's draws for the cell ``key``: the
-    pace of the original's runs for an algorithm of :data:`WALLCLOCK_DRAWS`, else 0 (this
-    project's seeded draws)."""
-    return pace_by_cell.get(key, 0.0) if key[2] in WALLCLOCK_DRAWS else 0.0
-
-
 def mean_figures(runs):
     """(avg, max, visits) averaged over runs [(avg, max, visits)]."""
     return tuple(statistics.mean(r[k] for r in runs) for k in range(3))
 
 
-def graph_config(map_name, robots, alg, seed, duration, draws=0.0):
+def graph_config(map_name, robots, alg, seed, duration):
     """Graph mode in the abstract world's conditions: the shipped default start positions,
-    straight-line travel at 1 m/s, no interference, goal wait 0, no delay or loss; with
-    ``draws`` > 0 the original's wall-clock draws emulated at that pace
-    (``patrolling_sim.algorithms.wallclock``)."""
-    from patrolling_sim.algorithms.wallclock import emulation_params
+    straight-line travel at 1 m/s, no interference, goal wait 0, no delay or loss."""
     from patrolling_sim.graphsim.config import GraphSimConfig
     kw = dict(map=map_name, robots=robots, alg=alg, seed=seed, duration=duration, speed=1.0,
               gwait=0.0, comm_delay=0.0, loss=0.0, initpos="default", travel="euclidean",
-              interference=False, params=emulation_params(draws, seed))
+              interference=False)
     fields = {f.name for f in dataclasses.fields(GraphSimConfig)}
     return GraphSimConfig(**{k: v for k, v in kw.items() if k in fields})
 
@@ -202,11 +174,10 @@ def fully_known(known, map_name, robots, alg):
     return all(known_reason(known, map_name, robots, alg, m) for m in METRICS)
 
 
-def graph_run(map_name, robots, alg, seed, duration, draws=0.0):
-    """(avg, max, visits, start vertices) of one graph-mode run (``draws``: as
-    :func:`graph_config`)."""
+def graph_run(map_name, robots, alg, seed, duration):
+    """(avg, max, visits, start vertices) of one graph-mode run."""
     from patrolling_sim.graphsim.simulator import GraphSimulator
-    sim = GraphSimulator(graph_config(map_name, robots, alg, seed, duration, draws))
+    sim = GraphSimulator(graph_config(map_name, robots, alg, seed, duration))
     s = sim.run(write=False)
     return s.global_avg, s.global_max, s.total_visits, list(sim.start_vertices)
 
