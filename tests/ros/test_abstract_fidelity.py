@@ -10,7 +10,13 @@ and graph mode in the same world
 
 Runs are shared by both comparisons and made four at a time (each has its own master; the
 abstract world holds its clock for slow agents and for the agents' messages, so sharing the
-machine does not change the sim-time figures). Every figure is a sim-time figure."""
+machine does not change the sim-time figures). Every figure is a sim-time figure.
+
+A sample of the fidelity matrix (tests/unit/data/original_matrix/, docs/fidelity_matrix.md:
+the original's own agents on the other maps, in this world) runs too: :data:`MATRIX_SAMPLE`,
+one run each of our agents in the cell's conditions (default start positions, the runs'
+duration, the monitor's dead-robot rule off), compared with the mean of the original's runs
+of the cell within the matrix's tolerances."""
 import math
 import os
 import statistics
@@ -23,6 +29,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "unit"))
 import fidelity_common as fc  # noqa: E402
+import original_matrix as om  # noqa: E402
 from abstract_runs import mean_figures, run_abstract  # noqa: E402
 
 ALGS = ("CR", "CGG", "SEBS", "DTAG", "DTAP", "DTASSI")
@@ -54,6 +61,10 @@ GRAPH_TOLERANCE = 0.05
 #: the difference.
 #: CGG's maximum varies by a few percent (142-143 s, a fixed route).
 RUNS = {"CR": 2, "SEBS": 4, "DTAG": 3, "DTAP": 10, "DTASSI": 6}
+#: cells of the fidelity matrix run in ROS mode too (map, robots, algorithm): two maps other
+#: than grid, algorithms whose original runs spread little (CGG's fixed route; HPCC's
+#: idleness-weighted paths), so that one run of ours can be judged by the matrix's tolerances
+MATRIX_SAMPLE = (("cumberland", 4, "CGG"), ("DIAG_floor1", 4, "HPCC"))
 #: runs at a time: the world holds its clock for the agents' messages and decisions, so a run
 #: spends much of its wall time waiting on short quiet windows, not computing
 PARALLEL = 4
@@ -90,18 +101,42 @@ def _cases():
 @pytest.fixture(scope="module")
 def ros_runs(tmp_path_factory):
     """alg -> [AbstractRun] for every algorithm of ALGS, all made on first use."""
-    jobs = [(alg, seed) for alg in ALGS for seed in range(RUNS.get(alg, 1))]
+    # the matrix sample first: its runs are three times as long as the others (1800 sim s)
+    jobs = [(cell, 0) for cell in MATRIX_SAMPLE]
+    jobs += [(alg, seed) for alg in ALGS for seed in range(RUNS.get(alg, 1))]
     # the folders are made here, not in the pool's threads: pytest creates its base temporary
     # folder on the first mktemp without a lock, and two threads racing there made two base
     # folders and failed the module's setup ("abstract_CR_1 is not a normalized and relative
     # path", seen once in a full suite)
-    dirs = [tmp_path_factory.mktemp(f"abstract_{alg}_{seed}") for alg, seed in jobs]
+    dirs = [tmp_path_factory.mktemp("abstract_" + ("_".join(map(str, alg))
+                                                   if isinstance(alg, tuple) else alg)
+                                    + f"_{seed}") for alg, seed in jobs]
     with ThreadPoolExecutor(PARALLEL) as pool:
-        done = list(pool.map(lambda job, d: run_abstract(job[0], job[1], d), jobs, dirs))
+        done = list(pool.map(lambda job, d: _run(*job, d), jobs, dirs))
     out = {}
     for (alg, _), run in zip(jobs, done):
         out.setdefault(alg, []).append(run)
     return out
+
+
+def _run(what, seed, results_dir):
+    """A run of the reference world (``what`` an algorithm) or of a matrix cell (``what`` =
+    (map, robots, algorithm): the cell's duration, the dead-robot rule off as in the
+    original's runs of the matrix)."""
+    if not isinstance(what, tuple):
+        return run_abstract(what, seed, results_dir)
+    map_name, robots, alg = what
+    return run_abstract(alg, seed, results_dir, map_name=map_name, robots=robots,
+                        duration=_matrix_cell(what)[0],
+                        extra=("--dead-robot-timeout", "0"))
+
+
+def _matrix_cell(cell):
+    """(duration, the original's runs [(avg, max, visits)]) of a matrix cell."""
+    found = [(key[3], runs) for key, runs in om.cells(om.read_rows()).items()
+             if key[:3] == cell]
+    assert len(found) == 1, f"the fidelity matrix has no single set of runs of {cell}"
+    return found[0]
 
 
 def check_complete(run, duration):
@@ -149,3 +184,18 @@ def test_graph_and_ros_mode_agree(alg, ros_runs):
     assert abs(run.avg - graph_avg) <= GRAPH_TOLERANCE * graph_avg, (
         f"{alg}: ROS mode avg idleness {run.avg:.2f} s, graph mode {graph_avg:.2f} s "
         f"({(run.avg - graph_avg) / graph_avg:+.1%}, tolerance {GRAPH_TOLERANCE:.0%})")
+
+
+@pytest.mark.parametrize("cell", MATRIX_SAMPLE, ids=lambda c: f"{c[0]}-{c[1]}-{c[2]}")
+def test_ros_mode_matches_the_original_on_other_maps(cell, ros_runs):
+    """Our agents in the abstract world against the original's own agents on a matrix cell:
+    average idleness, maximum idleness and visits within the matrix's tolerances of the mean
+    of the original's runs."""
+    duration, theirs = _matrix_cell(cell)
+    run = ros_runs[cell][0]
+    check_complete(run, duration)
+    cmp = om.compare(om.mean_figures(theirs), run.figures())
+    bad = [f"{m} {rel:+.1%} (tolerance {om.TOL[m]:.0%})" for m, (rel, ok) in cmp.items()
+           if not ok]
+    assert not bad, (f"{cell}: ROS mode {run.figures()} against the original's mean "
+                     f"{om.mean_figures(theirs)} over {len(theirs)} runs: " + "; ".join(bad))
