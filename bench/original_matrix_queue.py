@@ -5,12 +5,11 @@ A cell is (map, team size, algorithm). For every cell of the grid given (``--map
 ``--robots``, ``--algs``, in that order of priority: the first team size varies slowest), the
 queue counts the complete runs of the original's agents that the summary CSV already holds
 (``--summary``, by default tests/unit/data/original_matrix/runs.csv) and makes more with
-bench/original_agents.py, one run per call, up to ``--parallel`` runs side by side:
-
-1. every cell gets ``--min-runs`` runs (first pass, in priority order);
-2. then a cell gets one more run while the tolerance of a metric (docs/fidelity_matrix.md:
-   average 10 %, maximum 25 %, visits 10 % of the mean) is less than three standard errors
-   of the mean of its runs, up to ``--max-runs`` runs.
+bench/original_agents.py, one run per call, up to ``--parallel`` runs side by side (of
+different cells), in priority order: a cell gets ``--min-runs`` runs, then one more while the
+tolerance of a metric (docs/fidelity_matrix.md: average 10 %, maximum 25 %, visits 10 % of
+the mean) is less than three standard errors of the mean of its runs, up to ``--max-runs``
+runs, before the queue moves on to later cells.
 
 Each run writes its row to a CSV of its own under ``--work``; a complete run's row (the
 monitor's timeout after the whole duration) is appended to the summary under a file lock, so
@@ -164,7 +163,7 @@ def main():
     cells = plan(a)
     runs, last = existing(a.summary, a.duration)
     todo = sum(max(0, a.min_runs - len(runs.get(c, []))) for c in cells)
-    print(f"{len(cells)} cells, {todo} runs for the first pass "
+    print(f"{len(cells)} cells, {todo} runs to give every cell {a.min_runs} "
           f"({sum(1 for c in cells if len(runs.get(c, [])) >= a.min_runs)} cells complete)",
           flush=True)
     if a.dry_run:
@@ -174,26 +173,26 @@ def main():
     busy, pending, tries = set(), {}, {}
     next_index = {c: last.get(c, -1) + 1 for c in cells}
     with ThreadPoolExecutor(a.parallel) as pool:
-        for second_pass in (False, True):
-            while True:
-                runs, _ = existing(a.summary, a.duration)
-                # a cell whose runs keep failing is given up after max-runs + 2 tries
-                free = [c for c in cells if c not in busy
-                        and tries.get(c, 0) < a.max_runs + 2 and (
-                            len(runs.get(c, [])) < a.min_runs if not second_pass
-                            else needs_more(runs.get(c, []), a.max_runs))]
-                while free and len(pending) < a.parallel:
-                    c = free.pop(0)
-                    busy.add(c)
-                    tries[c] = tries.get(c, 0) + 1
-                    pending[pool.submit(one_run, a, c, next_index[c])] = c
-                    next_index[c] += 1
-                if not pending:
-                    break
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for f in done:
-                    busy.discard(pending.pop(f))
-                    f.result()
+        while True:
+            runs, _ = existing(a.summary, a.duration)
+            # cells in priority order; one that has its first runs gets more at once, so
+            # that a queue stopped part-way leaves finished cells; a cell whose runs keep
+            # failing is given up after max-runs + 2 tries
+            free = [c for c in cells if c not in busy and tries.get(c, 0) < a.max_runs + 2
+                    and (len(runs.get(c, [])) < a.min_runs
+                         or needs_more(runs.get(c, []), a.max_runs))]
+            while free and len(pending) < a.parallel:
+                c = free.pop(0)
+                busy.add(c)
+                tries[c] = tries.get(c, 0) + 1
+                pending[pool.submit(one_run, a, c, next_index[c])] = c
+                next_index[c] += 1
+            if not pending:
+                break
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for f in done:
+                busy.discard(pending.pop(f))
+                f.result()
     return 0
 
 
