@@ -14,6 +14,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from patrolling_sim.common.errors import PatrolInputError  # noqa: E402
 from patrolling_sim.report import fidelity_status  # noqa: E402
 from patrolling_sim.report import reference_docs as rd  # noqa: E402
+from patrolling_sim.report import reference_relink as rl  # noqa: E402
 from test_reference_docs import _runs, _table_rows  # noqa: E402
 
 
@@ -125,7 +126,7 @@ def test_relink_gives_the_pages_a_new_status_file_would(tmp_path):
                                             ("grid", 1, "CR", "differs", "+30% / +2% / +0%")])
     out = tmp_path / "pages"
     rd.write_docs(rd.build_reference_docs(base, "cmd", fidelity_file=str(old)), str(out))
-    rd.relink_docs(str(out), str(new))
+    rl.relink_docs(str(out), str(new))
     fresh = rd.build_reference_docs(base, "cmd", fidelity_file=str(new))
     for name, content in fresh.files.items():
         if name.endswith(".md") and name != "README.md":
@@ -134,9 +135,9 @@ def test_relink_gives_the_pages_a_new_status_file_would(tmp_path):
             assert got.split("\n")[3:] == content.split("\n")[3:], name
     assert _table_rows((out / "grid.md").read_text(), 1)["CR"][-1] == \
         "[differs](../fidelity_matrix.md)"
-    assert (out / "README.md").read_text().count(rd.RELINK_MARK) == 1
-    rd.relink_docs(str(out), str(new))                       # again: still one such line
-    assert (out / "README.md").read_text().count(rd.RELINK_MARK) == 1
+    assert (out / "README.md").read_text().count(rl.RELINK_MARK) == 1
+    rl.relink_docs(str(out), str(new))                       # again: still one such line
+    assert (out / "README.md").read_text().count(rl.RELINK_MARK) == 1
 
     plain = tmp_path / "plain"
     rd.write_docs(rd.build_reference_docs(base, "cmd"), str(plain))
@@ -145,6 +146,6 @@ def test_relink_gives_the_pages_a_new_status_file_would(tmp_path):
                                 (tmp_path / "none", new, "no reference tables here"),
                                 (out, tmp_path / "missing.csv", "cannot read")):
         with pytest.raises(PatrolInputError, match=msg) as e:
-            rd.relink_docs(str(folder), str(status))
+            rl.relink_docs(str(folder), str(status))
         assert "\n" not in str(e.value)
     assert {p.name: p.read_bytes() for p in plain.iterdir()} == before

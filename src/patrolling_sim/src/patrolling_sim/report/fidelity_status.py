@@ -18,6 +18,8 @@ from typing import Dict, Optional, Tuple
 from patrolling_sim.common.errors import PatrolInputError
 
 STATUSES = ("within", "known", "differs")
+#: where a reference page's status cell links to (relative to docs/reference/)
+MATRIX_LINK = "../fidelity_matrix.md"
 COLUMNS = ("map", "robots", "alg", "status", "detail")
 #: (map, robots, alg) -> (status, detail)
 Status = Dict[Tuple[str, int, str], Tuple[str, str]]

@@ -18,7 +18,6 @@ The metric definitions are those of ``docs/metrics.md``.
 import datetime
 import io
 import os
-import re
 import shlex
 import sys
 from dataclasses import dataclass, field
@@ -32,6 +31,7 @@ from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.model.graph import load_graph
 from patrolling_sim.planning.references import references
 from patrolling_sim.report import fidelity_status, starvation
+from patrolling_sim.report.reference_relink import relink_docs
 from patrolling_sim.report.reference_sources import config_columns, display_names
 from patrolling_sim.report.reference_sources import merge_sources
 
@@ -42,7 +42,7 @@ METRICS = (("idl_avg", "avg idleness (original) [s]", 1),
            ("idl_max", "max idleness (original) [s]", 1),
            ("total_visits", "visits", 0))
 #: where a measured cell's fidelity status links to (relative to docs/reference/)
-FIDELITY_LINK = "../fidelity_matrix.md"
+FIDELITY_LINK = fidelity_status.MATRIX_LINK
 #: the only status averaged: a run that patrolled for the whole duration
 USED_STATUS = "TIMEOUT"
 NOT_RUN = "NOT_RUN"
@@ -327,83 +327,6 @@ def build_reference_docs(campaign_dir: str, command: str,
     index += starvation.index_section(stats, causes)
     docs.files["README.md"] = "\n".join(index) + "\n"
     return docs
-
-
-_ROBOTS_HEADING = re.compile(r"^## (\d+) robots?$")
-#: the line of the index that says when the column "vs original" was last relinked
-RELINK_MARK = "The column \"vs original\" was relinked"
-
-
-def relink_fidelity(text: str, map_name: str, fidelity, link: str = FIDELITY_LINK) -> str:
-    """A map page (``text``, as :func:`build_reference_docs` wrote it with a fidelity file)
-    whose column "vs original" says what ``fidelity`` (a loaded status,
-    :func:`patrolling_sim.report.fidelity_status.load_status`) says now; every other
-    character is kept. The matrix grows without the campaign changing, so the links can be
-    brought up to date without the campaign's runs.
-
-    Raises:
-        PatrolInputError: the page has no table with a column "vs original".
-    """
-    out, robots, in_table, tables = [], None, False, 0
-    for line in text.split("\n"):
-        m = _ROBOTS_HEADING.match(line)
-        if m:
-            robots, in_table = int(m.group(1)), False
-        elif line.startswith("| algorithm |"):
-            in_table = line.endswith(" vs original |")
-            tables += in_table
-        elif in_table and line.startswith("| ") and robots is not None:
-            cells = line.split("|")
-            name = cells[1].strip()
-            if name and not name.startswith("*"):      # not a reference row
-                text_ = fidelity_status.cell_text(fidelity, map_name, robots, name.split()[0],
-                                                  link)
-                cells[-2] = f" {text_} "
-                line = "|".join(cells)
-        elif not line.startswith("|"):
-            in_table = False
-        out.append(line)
-    if not tables:
-        raise PatrolInputError(f"{map_name}: the page has no column 'vs original' (made "
-                               "without --fidelity)")
-    return "\n".join(out)
-
-
-def relink_docs(folder: str, fidelity_file: str, now=None) -> List[str]:
-    """Relink the column "vs original" of every map page under ``folder`` (the pages
-    :func:`write_docs` wrote, their ``README.md`` index among them) to ``fidelity_file``, and
-    say so in the index. Returns the pages rewritten; nothing is written if any page fails.
-
-    Raises:
-        PatrolInputError: one line, for a folder without reference pages, a bad status file or
-            a page without the column.
-    """
-    fidelity = fidelity_status.load_status(fidelity_file)
-    index = os.path.join(folder, "README.md")
-    if not os.path.isfile(index):
-        raise PatrolInputError(f"{folder}: no reference tables here (no README.md)")
-    with open(index, encoding="utf-8") as f:
-        maps = re.findall(r"^\| \[([^\]]+)\]\(\1\.md\) \|", f.read(), flags=re.M)
-    if not maps:
-        raise PatrolInputError(f"{index}: lists no map page")
-    docs = ReferenceDocs(total=0, done=0, excluded=0)
-    for m in maps:
-        path = os.path.join(folder, f"{m}.md")
-        try:
-            with open(path, encoding="utf-8") as f:
-                docs.files[f"{m}.md"] = relink_fidelity(f.read(), m, fidelity)
-        except OSError as e:
-            raise PatrolInputError(f"{path}: cannot read the page ({e.strerror})")
-    now = now or datetime.datetime.now(datetime.timezone.utc)
-    with open(index, encoding="utf-8") as f:
-        lines = [ln for ln in f.read().rstrip("\n").split("\n")
-                 if not ln.startswith(RELINK_MARK)]
-    lines += ["", f"{RELINK_MARK} to `{fidelity_file}` on {now.strftime('%Y-%m-%d %H:%M UTC')} "
-              "(`scripts/reference_docs.py --relink " + folder + " --fidelity "
-              + fidelity_file + "`): the runs and their figures are those above."]
-    docs.files["README.md"] = "\n".join(ln for i, ln in enumerate(lines)
-                                        if ln or not (i and lines[i - 1] == "")) + "\n"
-    return write_docs(docs, folder)
 
 
 def write_docs(docs: ReferenceDocs, out: str) -> List[str]:

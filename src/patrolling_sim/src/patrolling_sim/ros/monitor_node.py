@@ -170,10 +170,8 @@ class Monitor:
             return
         rid, kind = d[0], d[1]
         with self.lock:
-            # stamped under the lock: rospy hands each publisher's messages over on a thread
-            # of its own, and a stamp taken before waiting for the lock let a later report
-            # be recorded first (times going back, negative idleness samples: seen with 8
-            # robots on a loaded machine, 1.4 sim s back at x10)
+            # stamped under the lock: each publisher's messages come on a thread of its own,
+            # and a stamp taken before the wait let a later report be recorded first
             now = rospy.get_time()
             if self.finished:
                 return
