@@ -85,9 +85,8 @@ START_LIMIT = 120.0
 def world_launch(alg, seed, speedup, results_dir, env, exp):
     """Write the experiment's launch file with the runner (``--dry-run``) and a copy without
     our agents; return the copy's path. ``exp``: (map, robots, duration, dead robot
-    timeout[, the runner's world arguments: ``--nav abstract`` by default])."""
-    map_name, robots, duration, dead = exp[:4]
-    world = list(exp[4]) if len(exp) > 4 else ["--nav", "abstract"]
+    timeout, the runner's world arguments, e.g. ``--nav abstract``)."""
+    map_name, robots, duration, dead, world = exp
     cmd = ["/usr/bin/python3", START, "--map", map_name, "--robots", str(robots), "--alg", alg,
            *world, "--timeout", f"{duration:g}", "--speedup", f"{speedup:g}",
            "--processes", "separate", "--seed", str(seed), "--results-dir", results_dir,
@@ -173,14 +172,14 @@ def _visited(results_dir):
     """Some visit report is in the run's visits file (the run is under way)."""
     for path in glob.glob(os.path.join(results_dir, "**", "*_visits.csv"), recursive=True):
         with open(path, encoding="utf-8") as f:
-            if len(f.readlines()) > 1:
+            if f.readline() and f.readline():          # the header, then a visit
                 return True
     return False
 
 
 def run_original(orig_env, pkg, binary, alg, seed, speedup, results_dir, exp):
     """One run of the original's agents (``orig_env``: their workspace's environment,
-    ``pkg``: their package folder, ``exp``: (map, robots, duration, dead robot timeout));
+    ``pkg``: their package folder, ``exp``: as :func:`world_launch`);
     returns an :class:`AbstractRun` with its figures."""
     map_name, robots = exp[:2]
     port = free_port()
@@ -207,9 +206,10 @@ def run_original(orig_env, pkg, binary, alg, seed, speedup, results_dir, exp):
         # its info.csv is there (its last file): a world shutting down while agents of another
         # launch are still connected sometimes did not exit on SIGINT (roslaunch then kills it)
         t0 = time.monotonic()
-        exited = None
+        exited, started = None, False
         while world.poll() is None and time.monotonic() - t0 < RUN_LIMIT:
-            if time.monotonic() - t0 > START_LIMIT and not _visited(results_dir):
+            started = started or _visited(results_dir)
+            if not started and time.monotonic() - t0 > START_LIMIT:
                 print(f"  run {seed}: no visit {START_LIMIT:.0f} wall s after the agents "
                       "started (some never announced), stopped", file=sys.stderr)
                 break

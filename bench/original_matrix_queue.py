@@ -91,8 +91,8 @@ def append_locked(summary, path):
     because some agents never started, stays in its own CSV) to ``summary`` under an
     exclusive lock."""
     with open(path, newline="", encoding="utf-8") as f:
-        rows = [r for r in csv.DictReader(f) if r["termination"] == "TIMEOUT"
-                and float(r["sim_duration"] or 0) >= float(r["duration"])]
+        raw = list(csv.DictReader(f))
+    rows = [r for r, parsed in zip(raw, om.read_rows(path)) if om.complete(parsed)]
     if not rows:
         return 0
     with open(summary + ".lock", "w") as lock:

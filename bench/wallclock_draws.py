@@ -28,7 +28,7 @@ import sys
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 sys.path.insert(0, os.path.join(ROOT, "src", "spqrel_nav_lite", "src"))
-from patrolling_sim.algorithms.wallclock import emulation_params  # noqa: E402
+from patrolling_sim.algorithms.wallclock import EPOCH_PARAM, PACE_PARAM  # noqa: E402
 from patrolling_sim.common import paths  # noqa: E402
 from patrolling_sim.graphsim.config import GraphSimConfig  # noqa: E402
 from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
@@ -37,10 +37,16 @@ from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
 ALGS = ("RAND", "CR", "HCR", "HPCC", "GBS", "SEBS")
 
 
+def epoch_of(seed: int) -> int:
+    """The emulated wall-clock second at the clock's zero for run ``seed`` (any value; a
+    different one per seed, as a real clock gives)."""
+    return 1_700_000_000 + 7919 * seed
+
+
 def run(map_name, robots, alg, seed, duration, pace, **world):
     """(avg idleness, max idleness, visits, never-visited vertices) of one graph-mode run;
     ``pace`` 0: seeded draws."""
-    params = emulation_params(pace, seed)
+    params = {PACE_PARAM: pace, EPOCH_PARAM: epoch_of(seed)} if pace else {}
     s = GraphSimulator(GraphSimConfig(map=map_name, robots=robots, alg=alg, seed=seed,
                                       duration=duration, params=params, **world)
                        ).run(write=False)

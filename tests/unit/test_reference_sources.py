@@ -126,7 +126,7 @@ def test_relink_gives_the_pages_a_new_status_file_would(tmp_path):
                                             ("grid", 1, "CR", "differs", "+30% / +2% / +0%")])
     out = tmp_path / "pages"
     rd.write_docs(rd.build_reference_docs(base, "cmd", fidelity_file=str(old)), str(out))
-    rl.relink_docs(str(out), str(new))
+    rd.relink_docs(str(out), str(new))
     fresh = rd.build_reference_docs(base, "cmd", fidelity_file=str(new))
     for name, content in fresh.files.items():
         if name.endswith(".md") and name != "README.md":
@@ -136,7 +136,7 @@ def test_relink_gives_the_pages_a_new_status_file_would(tmp_path):
     assert _table_rows((out / "grid.md").read_text(), 1)["CR"][-1] == \
         "[differs](../fidelity_matrix.md)"
     assert (out / "README.md").read_text().count(rl.RELINK_MARK) == 1
-    rl.relink_docs(str(out), str(new))                       # again: still one such line
+    rd.relink_docs(str(out), str(new))                       # again: still one such line
     assert (out / "README.md").read_text().count(rl.RELINK_MARK) == 1
 
     plain = tmp_path / "plain"
@@ -146,6 +146,6 @@ def test_relink_gives_the_pages_a_new_status_file_would(tmp_path):
                                 (tmp_path / "none", new, "no reference tables here"),
                                 (out, tmp_path / "missing.csv", "cannot read")):
         with pytest.raises(PatrolInputError, match=msg) as e:
-            rl.relink_docs(str(folder), str(status))
+            rd.relink_docs(str(folder), str(status))
         assert "\n" not in str(e.value)
     assert {p.name: p.read_bytes() for p in plain.iterdir()} == before

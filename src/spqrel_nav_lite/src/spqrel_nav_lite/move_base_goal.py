@@ -170,9 +170,7 @@ class GoalExecution:
         feedback = MoveBaseFeedback()
         feedback.base_position.header.frame_id = self.global_frame
         last_feedback = rospy.get_time()
-        feedback.base_position.header.stamp = rospy.Time.from_sec(last_feedback)
-        fill_pose(feedback.base_position.pose, pose)
-        self.server.publish_feedback(feedback)
+        self._publish_feedback(feedback, pose, rospy.Time.from_sec(last_feedback))
         self.laser(pose)
         path = yield from self._first_plan(pose, goal)
         timeout = self.goal_timeout if self.goal_timeout > 0 else \
@@ -211,11 +209,15 @@ class GoalExecution:
             self.send(cmd.v, cmd.w)
             if now - last_feedback >= self.feedback_period - 1e-6:
                 last_feedback = now
-                feedback.base_position.header.stamp = rospy.Time.now()
-                fill_pose(feedback.base_position.pose, pose)
-                self.server.publish_feedback(feedback)
+                self._publish_feedback(feedback, pose, rospy.Time.now())
             yield NextCycle(dt, used_stamp)
         return None
+
+    def _publish_feedback(self, feedback, pose, stamp):
+        """Publish ``pose`` as the goal's feedback (``feedback``: the goal's message, reused)."""
+        feedback.base_position.header.stamp = stamp
+        fill_pose(feedback.base_position.pose, pose)
+        self.server.publish_feedback(feedback)
 
     def _goal_position(self, goal_msg):
         """(x, y) of the goal of ``goal_msg`` (a MoveBaseGoal). Raises Aborted if its frame

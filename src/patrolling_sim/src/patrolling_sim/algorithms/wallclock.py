@@ -28,15 +28,6 @@ PACE_PARAM = "original_draws_pace"
 EPOCH_PARAM = "original_draws_epoch"
 
 
-def emulation_params(pace: float, seed: int) -> dict:
-    """The strategy params that emulate the original's draws at ``pace`` for run ``seed``:
-    ``{}`` for ``pace`` 0 (seeded draws), else the pace and an epoch of the seed's own (any
-    value does; a different one per seed, as a real clock gives a run its own seconds)."""
-    if not pace:
-        return {}
-    return {PACE_PARAM: float(pace), EPOCH_PARAM: 1_700_000_000 + 7919 * int(seed)}
-
-
 class WallClockDraws:
     """``choice(seq)`` as the original's ``srand(time(NULL)); rand() % n`` (module
     docstring), at simulated time ``driver.now()``."""

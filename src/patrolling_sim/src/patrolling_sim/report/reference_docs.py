@@ -31,7 +31,7 @@ from patrolling_sim.model.graph import PatrolGraph
 from patrolling_sim.model.graph import load_graph
 from patrolling_sim.planning.references import references
 from patrolling_sim.report import fidelity_status, starvation
-from patrolling_sim.report.reference_relink import relink_docs
+from patrolling_sim.report.reference_relink import relinked_files
 from patrolling_sim.report.reference_sources import config_columns, display_names
 from patrolling_sim.report.reference_sources import merge_sources
 
@@ -341,6 +341,20 @@ def write_docs(docs: ReferenceDocs, out: str) -> List[str]:
         os.replace(tmp, p)
         written.append(p)
     return written
+
+
+def relink_docs(folder: str, fidelity_file: str, now=None) -> List[str]:
+    """Relink the column "vs original" of every map page under ``folder`` to
+    ``fidelity_file`` and say so in the index
+    (:func:`patrolling_sim.report.reference_relink.relinked_files`). Returns the pages
+    rewritten; nothing is written if any page fails.
+
+    Raises:
+        PatrolInputError: one line, as ``relinked_files``.
+    """
+    docs = ReferenceDocs(total=0, done=0, excluded=0)
+    docs.files = relinked_files(folder, fidelity_file, now)
+    return write_docs(docs, folder)
 
 
 def main(argv=None):

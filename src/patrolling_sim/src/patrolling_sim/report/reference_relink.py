@@ -1,7 +1,7 @@
 """The reference tables' column "vs original" brought up to date without their campaign.
 
 The fidelity matrix grows (more runs of the original's own agents) while the reference
-campaign stays the same; :func:`relink_docs` rewrites only that column of the pages
+campaign stays the same; :func:`relinked_files` rewrites only that column of the pages
 :mod:`patrolling_sim.report.reference_docs` wrote, from a newer status file
 (:mod:`patrolling_sim.report.fidelity_status`): byte for byte what a full rebuild with that
 file writes, plus one line in the index saying when.
@@ -9,7 +9,7 @@ file writes, plus one line in the index saying when.
 import datetime
 import os
 import re
-from typing import List
+from typing import Dict
 
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.report import fidelity_status
@@ -21,8 +21,9 @@ RELINK_MARK = "The column \"vs original\" was relinked"
 
 def relink_fidelity(text: str, map_name: str, fidelity,
                     link: str = fidelity_status.MATRIX_LINK) -> str:
-    """A map page (``text``, as :func:`build_reference_docs` wrote it with a fidelity file)
-    whose column "vs original" says what ``fidelity`` (a loaded status,
+    """A map page (``text``, as
+    :func:`patrolling_sim.report.reference_docs.build_reference_docs` wrote it with a
+    fidelity file) whose column "vs original" says what ``fidelity`` (a loaded status,
     :func:`patrolling_sim.report.fidelity_status.load_status`) says now; every other
     character is kept. The matrix grows without the campaign changing, so the links can be
     brought up to date without the campaign's runs.
@@ -55,11 +56,11 @@ def relink_fidelity(text: str, map_name: str, fidelity,
     return "\n".join(out)
 
 
-def relink_docs(folder: str, fidelity_file: str, now=None) -> List[str]:
-    """Relink the column "vs original" of every map page under ``folder`` (the pages
-    :func:`patrolling_sim.report.reference_docs.write_docs` wrote, their ``README.md`` index
-    among them) to ``fidelity_file``, and say so in the index. Returns the pages rewritten;
-    nothing is written if any page fails.
+def relinked_files(folder: str, fidelity_file: str, now=None) -> Dict[str, str]:
+    """{file name: new content} for every map page under ``folder`` (the pages
+    :func:`patrolling_sim.report.reference_docs.write_docs` wrote) and its ``README.md``
+    index: each page relinked to ``fidelity_file`` (:func:`relink_fidelity`), the index with
+    one line saying when. Nothing is written.
 
     Raises:
         PatrolInputError: one line, for a folder without reference pages, a bad status file or
@@ -90,11 +91,4 @@ def relink_docs(folder: str, fidelity_file: str, now=None) -> List[str]:
               + fidelity_file + "`): the runs and their figures are those above."]
     kept = [ln for i, ln in enumerate(lines) if ln or not (i and lines[i - 1] == "")]
     files["README.md"] = "\n".join(kept) + "\n"
-    written = []
-    for name, content in sorted(files.items()):     # each page replaced atomically
-        path = os.path.join(folder, name)
-        with open(path + ".part", "w", encoding="utf-8") as f:
-            f.write(content)
-        os.replace(path + ".part", path)
-        written.append(path)
-    return written
+    return files
