@@ -1,7 +1,9 @@
 """Navigation outputs that are built only while someone subscribes: move_base's ~plan (with
 the latest plan for a subscriber that comes later) and fake_localization's /tf and
 amcl_pose. The glue is driven with stand-in publishers, without a ROS master."""
+import collections
 import math
+import threading
 
 import numpy as np
 import pytest
@@ -128,3 +130,45 @@ def test_fake_localization_builds_what_is_listened_to(tf_conn, pose_conn):
         (p,) = fl.pose_pub.sent
         assert isinstance(p, PoseWithCovarianceStamped) and p.header.frame_id == "map"
         assert (p.pose.pose.position.x, p.pose.pose.position.y) == pytest.approx((3.0, 4.0))
+
+
+def odometry(stamp, x, y, yaw):
+    """An odometry message (the same message type as the ground truth)."""
+    return truth(stamp, x, y, yaw)
+
+
+def test_fake_localization_waits_for_the_odometry_of_each_instant():
+    """Ground truth of two steps before their odometry (two connections, under load): each
+    correction is built from the odometry of its own stamp, in order, none from an older
+    one."""
+    fl = fake_localization(1, 0)
+    fl.pending = collections.deque()
+    fl.lock = threading.Lock()
+    fl.on_odom(odometry(1.0, 0.0, 0.0, 0.0))
+    fl.on_truth(truth(1.0, 5.0, 5.0, 0.0))
+    fl.on_truth(truth(1.1, 5.1, 5.0, 0.0))        # odometry of 1.1 and 1.2 not here yet
+    fl.on_truth(truth(1.2, 5.2, 5.0, 0.0))
+    assert [t.header.stamp.to_sec() for t in fl.tf.pub_tf.sent] == [1.0]
+    fl.on_odom(odometry(1.1, 0.11, 0.0, 0.0))      # odometry runs 10 % long
+    fl.on_odom(odometry(1.2, 0.22, 0.0, 0.0))
+    sent = fl.tf.pub_tf.sent
+    assert [t.header.stamp.to_sec() for t in sent] == pytest.approx([1.0, 1.1, 1.2])
+    for t, (tx, ox) in zip(sent, [(5.0, 0.0), (5.1, 0.11), (5.2, 0.22)]):
+        # map->odom o odom == truth, exactly: x offset tx - ox
+        assert t.transform.translation.x == pytest.approx(tx - ox)
+    assert [s for _, s in fl.heard] == pytest.approx([1.0, 1.1, 1.2])
+
+
+def test_fake_localization_drops_truth_whose_odometry_never_comes():
+    fl = fake_localization(1, 0)
+    fl.pending = collections.deque()
+    fl.lock = threading.Lock()
+    fl.on_odom(odometry(0.0, 0.0, 0.0, 0.0))
+    for k in range(1, 80):                         # 7.9 s of ground truth, no odometry
+        fl.on_truth(truth(0.1 * k, 1.0, 0.0, 0.0))
+    assert not fl.tf.pub_tf.sent
+    assert len(fl.pending) <= 51                   # what fits in the 5 s history
+    fl.on_truth(truth(0.05, 1.0, 0.0, 0.0))        # time went backwards: a new run
+    assert [m.header.stamp.to_sec() for m in fl.pending] == pytest.approx([0.05])
+    fl.on_odom(odometry(0.05, 0.0, 0.0, 0.0))
+    assert [t.header.stamp.to_sec() for t in fl.tf.pub_tf.sent] == pytest.approx([0.05])

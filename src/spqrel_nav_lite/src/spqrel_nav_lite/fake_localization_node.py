@@ -3,6 +3,7 @@
 Subscribes base_pose_ground_truth and odom (nav_msgs/Odometry); the correction is
 map->odom = ground_truth o odom(at the same stamp)^-1, so odometry drift is removed.
 """
+import collections
 import functools
 import threading
 
@@ -35,7 +36,8 @@ class FakeLocalization:
         self.base_frame = strip_slash(self._p("base_frame_id", ns + "base_link", str))
         self.delta = (self._p("delta_x", 0.0), self._p("delta_y", 0.0), self._p("delta_yaw", 0.0))
         self.odom = PoseHistory(horizon=5.0)
-        self.pending = None
+        #: ground-truth messages whose odometry has not come yet, oldest first
+        self.pending = collections.deque()
         self.lock = threading.Lock()
         self.tf = tf2_ros.TransformBroadcaster()
         self.pose_pub = rospy.Publisher(r + "amcl_pose", PoseWithCovarianceStamped, queue_size=1)
@@ -53,20 +55,28 @@ class FakeLocalization:
 
     def _on_odom(self, msg):
         self.odom.add(msg.header.stamp.to_sec(), pose_of(msg.pose.pose))
-        pending = self.pending
-        if pending is not None and pending.header.stamp <= msg.header.stamp:
-            self.pending = None
-            self.publish(pending)
+        while self.pending and self.pending[0].header.stamp <= msg.header.stamp:
+            self.publish(self.pending.popleft())
 
     def _on_truth(self, msg):
+        """Publish the correction for ``msg`` once the odometry of its instant is here.
+
+        Odometry and ground truth come on two connections, so under load the ground truth
+        of a step can come before its odometry, even by several steps. Each such message
+        waits, in order, until the odometry reaches its stamp: a correction built from an
+        older odometry pose would be off by the robot's motion in between. A message that
+        waited longer than the odometry history (5 s of stamps) is dropped."""
+        stamp = msg.header.stamp.to_sec()
+        if self.pending and self.pending[-1].header.stamp.to_sec() > stamp:
+            self.pending.clear()                      # time went backwards: a new run
         latest = self.odom.latest()
-        if latest is None or latest[0] < msg.header.stamp.to_sec():
-            # odometry for this instant not here yet: publish when it arrives (or on the
-            # next ground-truth message, whichever comes first)
-            older, self.pending = self.pending, msg
-            if older is not None and latest is not None:
-                self.publish(older)
+        if latest is None or latest[0] < stamp:
+            self.pending.append(msg)
+            while self.pending[0].header.stamp.to_sec() < stamp - self.odom.horizon:
+                self.pending.popleft()
             return
+        while self.pending:                           # older ones first (their odometry is
+            self.publish(self.pending.popleft())     # here too: it is older than latest)
         self.publish(msg)
 
     def publish(self, msg):
