@@ -194,12 +194,24 @@ def compare(ref, got):
 
 def known_differences(path=KNOWN):
     """{(map, robots, algorithm, metric): reason} of the documented known differences
-    (``robots`` and ``metric`` may be ``*``: any)."""
+    (``robots`` and ``metric`` may be ``*``: any); {} if ``path`` does not exist.
+
+    Raises:
+        ValueError: a row without exactly the five fields (e.g. a reason holding a quote
+            that is not doubled, which splits it), naming the file and line.
+    """
     if not os.path.isfile(path):
         return {}
+    out = {}
     with open(path, newline="", encoding="utf-8") as f:
-        return {(r["map"], r["robots"], r["algorithm"], r["metric"]): r["reason"]
-                for r in csv.DictReader(f)}
+        reader = csv.DictReader(f)
+        for r in reader:
+            if None in r or None in r.values():
+                # a quote inside a reason that is not doubled splits the reason
+                raise ValueError(f"{path}:{reader.line_num}: expected the 5 fields "
+                                 f"map,robots,algorithm,metric,reason")
+            out[(r["map"], r["robots"], r["algorithm"], r["metric"])] = r["reason"]
+    return out
 
 
 def known_reason(known, map_name, robots, alg, metric):

@@ -42,6 +42,19 @@ def test_known_differences_name_stored_cells_and_give_a_reason():
         assert metric in om.METRICS + ("*",) and len(reason) > 20
 
 
+def test_a_reason_split_by_a_quote_is_an_error(tmp_path):
+    bad = tmp_path / "known.csv"
+    bad.write_text('map,robots,algorithm,metric,reason\n'
+                   'grid,4,CR,max,"see ("a section"), then more"\n', encoding="utf-8")
+    with pytest.raises(ValueError, match="known.csv:2"):
+        om.known_differences(str(bad))
+    good = tmp_path / "good.csv"
+    good.write_text('map,robots,algorithm,metric,reason\n'
+                    'grid,4,CR,max,"see (""a section""), then more"\n', encoding="utf-8")
+    assert om.known_differences(str(good)) == {
+        ("grid", "4", "CR", "max"): 'see ("a section"), then more'}
+
+
 def test_the_original_started_where_graph_mode_starts():
     """The runs used the project's default start positions, as graph mode does."""
     for map_name, robots in sorted({(r["map"], r["robots"]) for r in ROWS}):
