@@ -1,5 +1,5 @@
 """The abstract world holds its clock for the agents' messages (docs/abstract_world.md,
-"Message hold"), and the run record says so: a DTAP run through the runner (its own ROS
+"Message hold", "GO hold"), and the run record says so: a DTAP run through the runner (its own ROS
 master), whose auctions are answered before simulated time moves on."""
 import glob
 import os
@@ -26,10 +26,25 @@ def test_message_hold_engages_for_dtap_and_reaches_the_run_record(tmp_path):
     # (at least one per robot in 60 s), each of which holds the clock
     assert reasons["message"]["holds"] >= 4, clock
     assert reasons["message"]["wall"] > 0, clock
-    assert clock["holds"] == reasons["message"]["holds"] + reasons["reaction"]["holds"]
-    assert clock["hold_timeouts"] == (reasons["message"]["timeouts"]
-                                      + reasons["reaction"]["timeouts"])
+    # the GO hold: once, from the team's ready announcements until GO and 0.5 wall s on
+    assert reasons["go"]["holds"] == 1 and reasons["go"]["timeouts"] == 0, clock
+    assert reasons["go"]["wall"] >= 0.5, clock
+    assert clock["holds"] == sum(reasons[k]["holds"] for k in ("go", "message", "reaction"))
+    assert clock["hold_timeouts"] == sum(reasons[k]["timeouts"]
+                                         for k in ("go", "message", "reaction"))
     assert clock["held_wall"] > 0
+    # every agent read GO at the monitor's GO time or one step (0.02 s) after it
+    go = received = None
+    for p in glob.glob(r.prefix + "_logs/*/*-stdout.log"):
+        with open(p, encoding="utf-8", errors="replace") as f:
+            for line in f:
+                m = re.search(r", ([\d.]+)\]: All Robots GO", line)
+                go = float(m.group(1)) if m else go
+                m = re.search(r", ([\d.]+)\]: robot \d+: GO received", line)
+                if m:
+                    received = max(received or 0.0, float(m.group(1)))
+    assert go is not None and received is not None
+    assert received - go <= 0.02 + 1e-6, (go, received)
 
 
 def test_bids_arrive_before_the_clock_moves(tmp_path, monkeypatch):

@@ -178,7 +178,9 @@ def check_end(run, code, status, *, culprit=None, robot=None, complete_files=Tru
 ])
 def test_killed_node_ends_the_run_as_crashed(tmp_path, node, extra, culprit, robot):
     run = Run(tmp_path, extra)
-    run.wait_for("GO after")        # killed soon after GO: the monitor has results to keep
+    # killed soon after GO, once simulated time ran on (the simulator holds its clock for
+    # 0.5 wall s at GO): the monitor has results to keep
+    run.wait_for("go yes")
     pid = run.node_pid(node)
     os.kill(pid, signal.SIGKILL)
     rec, _ = check_end(run, 3, "CRASHED", culprit=culprit, robot=robot)

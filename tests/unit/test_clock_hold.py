@@ -13,6 +13,7 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "tools"))
 from clock_hold import (HoldCounter, MessageHold, awaited_answer, reaction_deadline,  # noqa
                         totals)
+import clock_hold  # noqa: E402
 
 
 def hold(team=4):
@@ -160,3 +161,37 @@ def test_auction_timers_mark_where_an_auction_may_end():
     t.note([1, MSG_SSI_TASK_REQUEST, 8, 300], 11.1)      # the next round replaces them
     assert not t.reached(12.0) and t.reached(12.1)
     assert t.reached(14.1) and not t.ends                # 3 s at most: nothing left
+
+
+def test_go_hold_from_last_ready_until_go_then_go_wait():
+    h = clock_hold.GoHold(team=2, go_wait=0.5, announce_wait=2.0)
+    assert h.until(0.0) is None
+    assert not h.note(1.0, [0, 10, 1]) and h.until(1.0) is None      # one robot ready
+    h.note(1.1, [0, 10, 1])                                            # announced again
+    assert h.until(1.1) is None
+    h.note(1.2, [1, 10, 1])                                            # the team is ready
+    assert h.until(1.2) == 3.2
+    assert h.note(1.25, [-1, 10, 100])                                 # GO
+    assert h.until(1.3) == 1.75
+    assert h.until(1.75) is None and h.counter.timeouts == 0
+    assert not h.note(2.0, [-1, 10, 100])                              # GO again: nothing new
+    assert h.until(2.0) is None
+
+
+def test_go_hold_times_out_without_go_and_waits_no_more():
+    h = clock_hold.GoHold(team=1, go_wait=0.5, announce_wait=2.0)
+    h.note(0.0, [0, 10, 1])
+    assert h.until(1.0) == 2.0
+    assert h.until(2.0) is None and h.counter.timeouts == 1
+    h.note(3.0, [0, 10, 1])                                            # a late re-announcement
+    assert h.until(3.0) is None
+    assert h.note(4.0, [-1, 10, 100]) and h.until(4.1) == 4.5          # GO still holds
+    assert h.until(4.5) is None and h.counter.timeouts == 1
+
+
+def test_go_hold_off_and_bad_wait():
+    h = clock_hold.GoHold(team=1, go_wait=0.0)
+    h.note(0.0, [0, 10, 1])
+    assert h.note(0.1, [-1, 10, 100]) and h.until(0.1) is None
+    with pytest.raises(ValueError, match="go_wait"):
+        clock_hold.GoHold(team=1, go_wait=-1.0)

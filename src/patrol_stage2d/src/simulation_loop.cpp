@@ -1,6 +1,7 @@
 // Simulation loop: set-up, stepping, pacing and status of the simulator (simulation_loop.h).
 #include "patrol_stage2d/simulation_loop.h"
 
+#include <algorithm>
 #include <chrono>
 #include <sstream>
 #include <thread>
@@ -32,6 +33,8 @@ void SimulationLoop::setup() {
   ros_.reset(new RobotsRos(nh_, &world_.robots(), clock_.get(), cfg_.laser, hold_.get()));
   clock_->advertise(nh_);
   status_pub_ = pnh_.advertise<std_msgs::String>("status", 10, true);
+  ready_.assign(world_.robots().size(), false);
+  if (cfg_.go_wait > 0) results_sub_ = nh_.subscribe("/results", 100, &SimulationLoop::on_results, this);
   renderer_.reset(new Renderer(cfg_, world_.map(), world_.robots(), *laser_));
   services_.reset(new Services(nh_, pnh_, &world_, cfg_.drive.radius, renderer_.get(), clock_.get()));
   const LaserConfig& l = cfg_.laser;
@@ -86,10 +89,26 @@ bool SimulationLoop::wait_for_commands() {
   };
   auto wall = [](Steady::time_point t) { return std::chrono::duration<double>(t.time_since_epoch()).count(); };
   auto start = Steady::now();
+  bool go_held = false;
+  while (ros::ok() && go_until_ >= 0) {  // every robot ready, or GO came in the last step
+    if (!go_held) ++go_holds_;
+    go_held = true;
+    double left = go_until_ - wall(Steady::now());
+    if (left <= 0) {
+      go_until_ = -1;
+      if (awaiting_go_) ++go_timeouts_;  // no GO came: the clock runs on (and waits no more for it)
+      break;
+    }
+    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(std::min(left, 0.01)));
+  }
+  if (go_held) {
+    go_wall_ += std::chrono::duration<double>(Steady::now() - start).count();
+    start = Steady::now();
+  }
   bool sync = cfg_.sync_timeout > 0 && pending();
   bool held = hold_->holding(clock_->now(), wall(start));
-  if (!sync && !held) return false;
-  bool ever_held = held;
+  if (!sync && !held) return go_held;
+  bool ever_held = held || go_held;
   if (sync) ++sync_waits_;
   auto deadline = start + std::chrono::duration_cast<Steady::duration>(std::chrono::duration<double>(cfg_.sync_timeout));
   auto held_from = start;
@@ -111,6 +130,29 @@ bool SimulationLoop::wait_for_commands() {
   }
   wait_wall_ += std::chrono::duration<double>(Steady::now() - start).count();
   return ever_held;
+}
+
+namespace {
+const double kGoAnnounceWait = 2.0;  // wall s the clock waits at most for GO once every robot is ready
+}
+
+void SimulationLoop::on_results(const std_msgs::Int16MultiArray::ConstPtr& msg) {
+  const std::vector<int16_t>& d = msg->data;
+  if (go_seen_ || d.size() < 3 || d[1] != 10) return;  // MSG_INIT: [id, 10, 1] ready, [-1, 10, 100] GO
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  if (d[0] == -1 && d[2] == 100) {
+    go_seen_ = true;
+    awaiting_go_ = false;
+    go_until_ = wall + cfg_.go_wait;
+    ROS_INFO("stage2d: GO at sim %.2f s; the clock stands still for %g wall s", clock_->now(), cfg_.go_wait);
+    results_sub_.shutdown();  // nothing else on /results concerns the simulator
+  } else if (d[2] == 1 && d[0] >= 0 && static_cast<size_t>(d[0]) < ready_.size() && !awaiting_go_) {
+    ready_[d[0]] = true;
+    if (std::all_of(ready_.begin(), ready_.end(), [](bool b) { return b; })) {
+      awaiting_go_ = true;  // the monitor sends GO now
+      go_until_ = wall + kGoAnnounceWait;
+    }
+  }
 }
 
 double SimulationLoop::stale_command_fraction() const {
@@ -138,12 +180,15 @@ void SimulationLoop::publish_status(double rtf) {
   js << "], \"wall_contacts\": " << world_.contacts().wall << ", \"robot_contacts\": " << world_.contacts().robot
      << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction())
      << ", \"sync_waits\": " << sync_waits_ << ", \"sync_timeouts\": " << sync_timeouts_
-     << ", \"clock_holds\": " << sync_waits_ + hold_->holds() + hold_->stop_waits()
-     << ", \"hold_timeouts\": " << sync_timeouts_ + hold_->timeouts() + hold_->stop_timeouts() << ", \"held_wall\": " << fmt("%.3f", wait_wall_)
+     << ", \"clock_holds\": " << sync_waits_ + hold_->holds() + hold_->stop_waits() + go_holds_
+     << ", \"hold_timeouts\": " << sync_timeouts_ + hold_->timeouts() + hold_->stop_timeouts() + go_timeouts_
+     << ", \"held_wall\": " << fmt("%.3f", wait_wall_ + go_wall_)
      << ", \"hold_reasons\": {\"commands\": {\"holds\": " << sync_waits_ << ", \"timeouts\": " << sync_timeouts_
      << ", \"wall\": " << fmt("%.3f", wait_wall_ - held_wall_) << "}, \"reaction\": {\"holds\": " << hold_->holds()
      << ", \"timeouts\": " << hold_->timeouts() << ", \"wall\": " << fmt("%.3f", held_wall_)
-     << "}, \"result\": {\"holds\": " << hold_->stop_waits() << ", \"timeouts\": " << hold_->stop_timeouts() << "}}}";
+     << "}, \"result\": {\"holds\": " << hold_->stop_waits() << ", \"timeouts\": " << hold_->stop_timeouts()
+     << "}, \"go\": {\"holds\": " << go_holds_ << ", \"timeouts\": " << go_timeouts_
+     << ", \"wall\": " << fmt("%.3f", go_wall_) << "}}}";
   std_msgs::String m;
   m.data = js.str();
   status_pub_.publish(m);

@@ -37,7 +37,8 @@ Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup
 ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
 ~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.2 wall s; 0 = never hold),
 ~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off),
-~auction_timers (true: hold where a DTA auction may end).
+~auction_timers (true: hold where a DTA auction may end), ~go_wait (0.5 wall s the clock stands
+still after GO, and from the last robot's ready announcement until GO; 0 off).
 
 Diagnostic: with ``PATROLLING_SIM_TRACE_AUCTIONS=1`` in its environment the node logs at
 shutdown the sim and wall s from each DTA task request (type 41) to each bid (type 42).
@@ -51,8 +52,8 @@ import time
 
 # the motion model lives beside this script (Python puts the script folder on sys.path)
 from straight_line_world import EPS, StraightLineWorld, read_positions
-from clock_hold import (AuctionTimers, AuctionTrace, HoldCounter, MessageHold, reaction_deadline,
-                        totals)
+from clock_hold import (AuctionTimers, AuctionTrace, GoHold, HoldCounter, MessageHold,
+                        reaction_deadline, totals)
 from robot_server import RobotServer
 
 STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5 Hz)
@@ -68,6 +69,9 @@ MESSAGE_QUIET = 0.005
 ANSWER_QUIET = 0.02
 #: wall s the clock waits at most per message hold (then it runs on and counts a time-out)
 MESSAGE_WAIT = 0.1
+#: wall s the clock stands still once GO is seen, so that every agent reads GO at GO's sim time
+#: (each starts its start delay then); GO asks for no answer, so no silence can end it earlier
+GO_WAIT = 0.5
 
 
 class WorldNode:
@@ -108,6 +112,7 @@ class WorldNode:
         # hold the clock (as after a message) where a DTA auction may end: the auctioneer's
         # timer fires there and it acts (a new round, a goal)
         self.timers = AuctionTimers() if rospy.get_param("~auction_timers", True) else None
+        self.go_hold = GoHold(len(positions), float(rospy.get_param("~go_wait", GO_WAIT)))
         self.go_at = None
         self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=1)
         self.clock = Clock()
@@ -154,16 +159,18 @@ class WorldNode:
     def _on_results(self, msg):
         d = msg.data
         now = time.monotonic()
+        go = False
         if len(d) >= 2:                             # any message: the agents react to GO too
             with self.lock:
                 self.message_hold.note(now, d)
                 if self.timers is not None:
                     self.timers.note(d, self.world.time)
+                if self.go_hold.note(now, d):
+                    go, self.go_at = True, self.world.time
                 self.traffic.notify_all()
         if self.trace is not None:
             self.trace.note(d, self.world.time, now)
-        if len(d) >= 3 and d[0] == -1 and d[1] == 10 and d[2] == 100 and self.go_at is None:
-            self.go_at = self.world.time
+        if go:
             self.rospy.loginfo("abstract_world: GO at sim %.2f s", self.go_at)
 
     def run(self):
@@ -190,7 +197,8 @@ class WorldNode:
         last_status = 0.0
         rtf = 0.0
         while not rospy.is_shutdown():
-            held = self.hold_limit > 0 and self._hold_for_reactions()
+            held = self._hold_for_go()
+            held = self.hold_limit > 0 and self._hold_for_reactions() or held
             if self._hold_for_messages() or held:
                 next_wall = time.monotonic()       # the clock stood still: no catch-up
             with self.lock:
@@ -235,6 +243,21 @@ class WorldNode:
                 window = (now, self.world.time)
                 last_status = now
                 self.status_pub.publish(json.dumps(self.status(rtf)))
+
+    def _hold_for_go(self):
+        """Stop the clock while the GO hold lasts (clock_hold.GoHold); True if it held."""
+        with self.lock:
+            start = time.monotonic()
+            if self.go_hold.until(start) is None:
+                return False
+            self.go_hold.counter.holds += 1
+            while not self.rospy.is_shutdown():
+                end = self.go_hold.until(time.monotonic())
+                if end is None:
+                    break
+                self.traffic.wait(end - time.monotonic())
+            self.go_hold.counter.wall += time.monotonic() - start
+        return True
 
     def _hold_for_reactions(self):
         """Stop the clock while a robot that arrived ``hold_after`` sim s ago has no new goal
@@ -332,7 +355,8 @@ class WorldNode:
                     goals=[r.goals for r in self.robots],
                     succeeded=[r.succeeded for r in self.robots],
                     preempted=[r.preempted for r in self.robots],
-                    **totals({"reaction": self.reaction, "message": self.message_hold.counter}))
+                    **totals({"go": self.go_hold.counter, "reaction": self.reaction,
+                              "message": self.message_hold.counter}))
 
     def log_summary(self):
         if self.trace is not None:
@@ -346,7 +370,7 @@ class WorldNode:
                 f"s in all; for messages {self.message_hold.counter.holds} times, "
                 f"{self.message_hold.counter.timeouts} timed out after "
                 f"{self.message_hold.limit:g} wall s, {self.message_hold.counter.wall:.2f} wall "
-                f"s in all")
+                f"s in all; for GO {self.go_hold.counter.wall:.2f} wall s")
         if turn:
             line += (f"; turnaround SUCCEEDED->next goal (sim s): n {len(turn)} mean "
                      f"{statistics.mean(turn):.3f} median {statistics.median(turn):.3f} "

@@ -12,7 +12,8 @@ lasts at most ``limit`` wall s; then it is counted as timed out and the clock ru
 """
 from dataclasses import dataclass
 
-from patrolling_sim.common.protocol import MSG_SSI_BID, MSG_SSI_TASK_REQUEST
+from patrolling_sim.common.protocol import (GO, MONITOR_ID, MSG_INIT, MSG_SSI_BID,
+                                            MSG_SSI_TASK_REQUEST)
 
 
 @dataclass
@@ -212,3 +213,55 @@ class AuctionTimers:
             if not ends:
                 del self.ends[robot]
         return hit
+
+
+#: wall s the clock waits at most, once every robot has announced itself ready, for the
+#: monitor's GO (which it sends at once): the monitor's GO time is then the agents' GO time
+GO_ANNOUNCE_WAIT = 2.0
+
+
+class GoHold:
+    """The GO hold (docs/abstract_world.md, "GO hold"): once all ``team`` robots have
+    announced themselves ready (``[id, 10, 1]``) the clock stands still until GO
+    (``[-1, 10, 100]``), at most ``announce_wait`` wall s, then ``go_wait`` wall s from the
+    moment GO is seen. ``go_wait`` 0 turns it off. ``note`` takes every /results message with
+    its wall time; ``until`` says till when the clock must stand still."""
+
+    def __init__(self, team, go_wait, announce_wait=GO_ANNOUNCE_WAIT):
+        if go_wait < 0 or announce_wait < 0:
+            raise ValueError(f"~go_wait must be >= 0, got {go_wait}")
+        self.team, self.go_wait, self.announce_wait = team, go_wait, announce_wait
+        self.counter = HoldCounter()
+        self.ready = set()
+        self.go_seen = False
+        self.awaiting_go = False    # every robot is ready: waiting for GO
+        self.end = None             # wall time the hold ends (None: no hold pending)
+
+    def note(self, now, data):
+        """A /results message ``data`` at wall time ``now``; True if it is the first GO."""
+        if self.go_seen or len(data) < 3 or data[1] != MSG_INIT:
+            return False
+        if data[0] == MONITOR_ID and data[2] == GO:
+            self.go_seen, self.awaiting_go = True, False
+            if self.go_wait > 0:
+                self.end = now + self.go_wait
+            return True
+        if (data[2] == 1 and 0 <= data[0] < self.team and self.go_wait > 0
+                and not self.awaiting_go):
+            self.ready.add(data[0])
+            if len(self.ready) == self.team:
+                self.awaiting_go = True
+                self.end = now + self.announce_wait
+        return False
+
+    def until(self, now):
+        """The wall time until which the clock stands still, or None (the hold is over: a
+        hold that ended without GO counts as timed out, and no other wait for GO follows)."""
+        if self.end is None:
+            return None
+        if now < self.end:
+            return self.end
+        self.end = None
+        if self.awaiting_go:
+            self.counter.timeouts += 1
+        return None

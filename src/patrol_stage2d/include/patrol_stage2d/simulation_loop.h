@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <ros/ros.h>
+#include <std_msgs/Int16MultiArray.h>
 
 #include "patrol_stage2d/config.h"
 #include "patrol_stage2d/laser.h"
@@ -32,6 +33,7 @@ class SimulationLoop {
   void publish();
   bool wait_for_commands();  // true if the clock stood still for a reaction
   double stale_command_fraction() const;
+  void on_results(const std_msgs::Int16MultiArray::ConstPtr& msg);
   void publish_status(double rtf);
 
   ros::NodeHandle nh_, pnh_;
@@ -44,6 +46,17 @@ class SimulationLoop {
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Services> services_;
   ros::Publisher status_pub_;
+  // GO hold: from the last robot's ready announcement ([id, 10, 1] on /results) the clock
+  // stands still until GO (at most kGoAnnounceWait wall s: the monitor sends GO at once and
+  // takes its GO time then), and then for ~go_wait wall s: GO reaches each agent on its own
+  // connection, and an agent that reads it a step later starts its whole patrol a step later
+  // (GO asks for no answer: no sign but time says that every agent has read it)
+  ros::Subscriber results_sub_;
+  std::vector<bool> ready_;
+  bool go_seen_ = false, awaiting_go_ = false;
+  double go_until_ = -1;   // wall time (steady clock, s) the GO hold ends; < 0: none pending
+  long go_holds_ = 0, go_timeouts_ = 0;
+  double go_wall_ = 0;     // wall s the clock stood still for GO
   double next_scan_ = 0, next_snapshot_ = 0;
   long sync_waits_ = 0, sync_timeouts_ = 0;
   double held_wall_ = 0;  // wall s the clock stood still for reactions

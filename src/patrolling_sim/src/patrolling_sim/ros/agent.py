@@ -2,7 +2,7 @@
 the one implementation of a robot's life cycle (see ``docs/protocol.md``).
 
 This module only connects the core to ROS: the ``robot_i/move_base`` action client (goals,
-feedback, outcomes), ``/results`` and ``/positions``, one-shot rospy timers on ROS time,
+feedback, outcomes), ``/results`` and ``/positions``, one-shot timers on ROS time (``sim_timers``),
 the back-up twists on ``robot_i/cmd_vel`` and the ``clear_costmaps`` service. Every callback
 takes ``self.lock`` and hands the event to the core; nothing blocks inside a callback. A
 goal's outcome is the exception: actionlib reports it holding the goal's own mutex, so it is
@@ -30,6 +30,7 @@ from patrolling_sim.agent.factory import build_agent
 from patrolling_sim.algorithms.base import MSG_FAILURE
 from patrolling_sim.common.errors import PatrolInputError
 from patrolling_sim.model.graph import PatrolGraph, load_graph
+from patrolling_sim.ros import sim_timers
 from patrolling_sim.ros.agent_scenario import AgentScenario
 from patrolling_sim.ros.agent_params import (AgentError, clamp_int16, float_param, parse_ids,
                                              parse_robot_frame, read_common_params,
@@ -119,11 +120,13 @@ class PatrolAgent(Effects):
         rospy.signal_shutdown("monitor END")
 
     def call_later(self, delay, fn):
-        """Run ``fn()`` (under the lock) after ``delay`` s of ROS time, without blocking."""
+        """Run ``fn()`` (under the lock) ``delay`` s of ROS time after now, without blocking:
+        the deadline is fixed now, whenever the process's timer thread gets to run
+        (:mod:`patrolling_sim.ros.sim_timers`)."""
         holder = {}
 
-        def fire(_event):
-            with self.lock:           # the creator holds the lock until holder is filled
+        def fire():
+            with self.lock:
                 self.timers.discard(holder.get("t"))
                 if rospy.core.is_shutdown_requested():
                     return
@@ -133,8 +136,8 @@ class PatrolAgent(Effects):
                     rospy.logerr("robot %d: error in timed callback: %s", self.id, e)
                     raise
 
-        with self.lock:
-            t = rospy.Timer(rospy.Duration(max(float(delay), 1e-3)), fire, oneshot=True)
+        with self.lock:           # held until holder is filled: fire() waits for it
+            t = sim_timers.call_later(delay, fire)
             holder["t"] = t
             self.timers.add(t)
         return t
