@@ -26,9 +26,13 @@ def test_message_hold_engages_for_dtap_and_reaches_the_run_record(tmp_path):
     # (at least one per robot in 60 s), each of which holds the clock
     assert reasons["message"]["holds"] >= 4, clock
     assert reasons["message"]["wall"] > 0, clock
-    # the GO hold: once, from the team's ready announcements until GO and 0.5 wall s on
-    assert reasons["go"]["holds"] == 1 and reasons["go"]["timeouts"] == 0, clock
-    assert reasons["go"]["wall"] >= 0.5, clock
+    # the GO hold: from the team's ready announcements until GO, then 0.5 wall s from the
+    # moment the world saw GO (it notices the hold within a step, so a little less may be
+    # counted); a monitor that missed an announcement sends GO only after the robot's next
+    # one, once the 2 wall s wait for GO timed out: then a second hold, at GO
+    go_hold = reasons["go"]
+    assert go_hold["holds"] in (1, 2) and go_hold["timeouts"] == go_hold["holds"] - 1, clock
+    assert go_hold["wall"] >= 0.45, clock
     assert clock["holds"] == sum(reasons[k]["holds"] for k in ("go", "message", "reaction"))
     assert clock["hold_timeouts"] == sum(reasons[k]["timeouts"]
                                          for k in ("go", "message", "reaction"))

@@ -11,9 +11,8 @@ from patrolling_sim.runner.outcome import clock_record
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "tools"))
-from clock_hold import (HoldCounter, MessageHold, awaited_answer, reaction_deadline,  # noqa
-                        totals)
-import clock_hold  # noqa: E402
+from clock_hold import (GoHold, HoldCounter, MessageHold, awaited_answer,  # noqa
+                        reaction_deadline, totals)
 
 
 def hold(team=4):
@@ -164,7 +163,7 @@ def test_auction_timers_mark_where_an_auction_may_end():
 
 
 def test_go_hold_from_last_ready_until_go_then_go_wait():
-    h = clock_hold.GoHold(team=2, go_wait=0.5, announce_wait=2.0)
+    h = GoHold(team=2, go_wait=0.5, announce_wait=2.0)
     assert h.until(0.0) is None
     assert not h.note(1.0, [0, 10, 1]) and h.until(1.0) is None      # one robot ready
     h.note(1.1, [0, 10, 1])                                            # announced again
@@ -179,7 +178,7 @@ def test_go_hold_from_last_ready_until_go_then_go_wait():
 
 
 def test_go_hold_times_out_without_go_and_waits_no_more():
-    h = clock_hold.GoHold(team=1, go_wait=0.5, announce_wait=2.0)
+    h = GoHold(team=1, go_wait=0.5, announce_wait=2.0)
     h.note(0.0, [0, 10, 1])
     assert h.until(1.0) == 2.0
     assert h.until(2.0) is None and h.counter.timeouts == 1
@@ -190,8 +189,8 @@ def test_go_hold_times_out_without_go_and_waits_no_more():
 
 
 def test_go_hold_off_and_bad_wait():
-    h = clock_hold.GoHold(team=1, go_wait=0.0)
+    h = GoHold(team=1, go_wait=0.0)
     h.note(0.0, [0, 10, 1])
     assert h.note(0.1, [-1, 10, 100]) and h.until(0.1) is None
     with pytest.raises(ValueError, match="go_wait"):
-        clock_hold.GoHold(team=1, go_wait=-1.0)
+        GoHold(team=1, go_wait=-1.0)

@@ -13,7 +13,7 @@ lasts at most ``limit`` wall s; then it is counted as timed out and the clock ru
 from dataclasses import dataclass
 
 from patrolling_sim.common.protocol import (GO, MONITOR_ID, MSG_INIT, MSG_SSI_BID,
-                                            MSG_SSI_TASK_REQUEST)
+                                            MSG_SSI_TASK_REQUEST, ROBOT_READY)
 
 
 @dataclass
@@ -246,7 +246,7 @@ class GoHold:
             if self.go_wait > 0:
                 self.end = now + self.go_wait
             return True
-        if (data[2] == 1 and 0 <= data[0] < self.team and self.go_wait > 0
+        if (data[2] == ROBOT_READY and 0 <= data[0] < self.team and self.go_wait > 0
                 and not self.awaiting_go):
             self.ready.add(data[0])
             if len(self.ready) == self.team:

@@ -20,6 +20,8 @@ from patrolling_sim.common.timer_heap import TimerHeap
 
 #: wall s the thread waits at most between two looks at the clock and the heap
 POLL = 0.5
+#: s: the shortest delay; a zero delay fires at the next clock step, as with rospy.Timer
+MIN_DELAY = 1e-3
 
 
 class TimerScheduler:
@@ -80,7 +82,3 @@ def call_later(delay, fn):
     """Run ``fn()`` ``delay`` s of ROS time from now (now: ``rospy.get_time()`` at this call;
     at least ``MIN_DELAY`` s, i.e. never in the calling step). Returns the handle."""
     return scheduler().call_at(rospy.get_time() + max(float(delay), MIN_DELAY), fn)
-
-
-#: s: the shortest delay; a zero delay fires at the next clock step, as with rospy.Timer
-MIN_DELAY = 1e-3
