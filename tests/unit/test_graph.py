@@ -63,6 +63,32 @@ def test_round_trip(name, tmp_path):
     assert graphs_equal(G, load_graph(str(out)))
 
 
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_file_order_of_neighbours_kept(name):
+    """The neighbour lists come back in the file's order, also where a vertex lists a
+    neighbour twice with another in between (example: 8, 12, 16), which networkx alone
+    groups: the original's agents walk the lists in file order (its CGG route depends on
+    it)."""
+    path = paths.map_files(name)[1]
+    with open(path) as f:
+        tokens = f.read().split()
+    assert format_graph(load_graph(path)).split()[6:] == tokens[6:]   # past the header
+    g = PatrolGraph.load(path)
+    i = 6
+    for v in range(g.n):
+        k = int(tokens[i + 3])
+        listed = [int(tokens[i + 4 + 3 * j]) for j in range(k)]
+        assert [w for w, _ in g.neighbors[v]] == listed, f"{name} vertex {v}"
+        i += 4 + 3 * k
+
+
+def test_interleaved_multi_edge_order():
+    text = "3 10 10 1 0 0\n0 1 1 3 1 E 2 2 N 3 1 E 4\n1 3 1 1 0 W 2\n2 1 3 1 0 S 3\n"
+    g = PatrolGraph(parse_graph(text, "m.graph"))
+    assert g.neighbors[0] == [(1, 2), (2, 3), (1, 4)]
+    assert format_graph(g.G).split()[6:19] == "0 1 1 3 1 E 2 2 N 3 1 E 4".split()
+
+
 def test_patrol_graph_tables():
     pg = PatrolGraph(load_graph(paths.map_files("grid")[1]))
     assert pg.n == 25

@@ -14,8 +14,12 @@ integer pixel lengths; every algorithm uses them, motion uses metres.
 - graph attributes: ``name``, ``path``, ``width_px``, ``height_px``, ``resolution``,
   ``offset_x``, ``offset_y``;
 - node attributes: ``x_px``, ``y_px``, ``pos`` (metres, tuple);
-- one directed edge per neighbour entry, in file order, with ``direction``, ``cost_px``
-  and ``cost_m``. Edges are normally listed at both ends; multi-edges are kept.
+- one directed edge per neighbour entry with ``direction``, ``cost_px``, ``cost_m`` and
+  ``slot`` (its position in the vertex's record). Edges are normally listed at both ends;
+  multi-edges are kept. networkx groups a vertex's edges by neighbour, so a vertex that
+  lists the same neighbour twice with another in between comes back from ``out_edges`` in
+  another order than the file's: :func:`out_edges_in_order` gives the file's order (the
+  original's agents walk the neighbour lists in that order).
 
 :class:`PatrolGraph` wraps such a graph with the lookup tables the algorithms need
 (ordered neighbour lists, all-pairs shortest path costs, hop counts; the tables and their
@@ -132,16 +136,24 @@ def parse_graph(text, path="<string>"):
                     f"{path}:{dline}: direction of edge {vid}->{w} must be one of "
                     f"{'/'.join(DIRECTIONS)}, got '{d}'")
             c, _ = tk.int(f"cost (px) of edge {vid}->{w}", minimum=0)
-            pending.append((vid, w, d, c))
+            pending.append((vid, w, d, c, j))
     rest = tk.rest()
     if rest:
         tok, line = rest[0]
         raise GraphFormatError(
             f"{path}:{line}: unexpected data '{tok}' after the {n} vertex records "
             f"(is the vertex count or a neighbour count wrong?)")
-    for u, w, d, c in pending:
-        G.add_edge(u, w, direction=d, cost_px=c, cost_m=c * res)
+    for u, w, d, c, j in pending:
+        G.add_edge(u, w, direction=d, cost_px=c, cost_m=c * res, slot=j)
     return G
+
+
+def out_edges_in_order(G, v):
+    """The out-edges ``(v, w, data)`` of ``v`` in the order of its record in the graph
+    file (their ``slot``); edges without a ``slot`` (added by code, not read from a file)
+    follow those with one, in the order they were added."""
+    edges = list(G.out_edges(v, data=True))
+    return sorted(edges, key=lambda e: e[2].get("slot", math.inf))
 
 
 def load_graph(path, occupancy=None, warn=True):
@@ -220,7 +232,7 @@ def format_graph(G):
              _fmt_float(a["resolution"]), _fmt_float(a["offset_x"]), _fmt_float(a["offset_y"]), ""]
     for v in range(G.number_of_nodes()):
         d = G.nodes[v]
-        edges = list(G.out_edges(v, data=True))
+        edges = out_edges_in_order(G, v)
         lines += [str(v), str(d["x_px"]), str(d["y_px"]), str(len(edges))]
         for _, w, e in edges:
             lines += [str(w), e["direction"], str(e["cost_px"])]
@@ -243,8 +255,8 @@ def graphs_equal(G1, G2):
     for v in G1.nodes:
         if G1.nodes[v] != G2.nodes[v]:
             return False
-        e1 = [(w, d["direction"], d["cost_px"]) for _, w, d in G1.out_edges(v, data=True)]
-        e2 = [(w, d["direction"], d["cost_px"]) for _, w, d in G2.out_edges(v, data=True)]
+        e1 = [(w, d["direction"], d["cost_px"]) for _, w, d in out_edges_in_order(G1, v)]
+        e2 = [(w, d["direction"], d["cost_px"]) for _, w, d in out_edges_in_order(G2, v)]
         if e1 != e2:
             return False
     return True
@@ -284,7 +296,7 @@ class PatrolGraph:
         self.pos = np.array([G.nodes[v]["pos"] for v in range(self.n)], dtype=float)
         self.pos_px = np.array([(G.nodes[v]["x_px"], G.nodes[v]["y_px"])
                                 for v in range(self.n)], dtype=float)
-        self.neighbors = [[(w, d["cost_px"]) for _, w, d in G.out_edges(v, data=True)]
+        self.neighbors = [[(w, d["cost_px"]) for _, w, d in out_edges_in_order(G, v)]
                           for v in range(self.n)]
         # cheapest directed cost between adjacent vertices
         self._arc = {}
