@@ -13,6 +13,10 @@
 
 namespace patrol_stage2d {
 
+namespace {
+const double kGoAnnounceWait = 2.0;  // wall s the clock waits at most for GO once every robot is ready
+}
+
 void SimulationLoop::setup() {
   ParamReader p(pnh_);
   std::string map_path = p.get<std::string>("map", "");
@@ -33,8 +37,8 @@ void SimulationLoop::setup() {
   ros_.reset(new RobotsRos(nh_, &world_.robots(), clock_.get(), cfg_.laser, hold_.get()));
   clock_->advertise(nh_);
   status_pub_ = pnh_.advertise<std_msgs::String>("status", 10, true);
-  ready_.assign(world_.robots().size(), false);
-  if (cfg_.go_wait > 0) results_sub_ = nh_.subscribe("/results", 100, &SimulationLoop::on_results, this);
+  go_.reset(new GoHold(world_.robots().size(), cfg_.go_wait, kGoAnnounceWait));
+  if (go_->enabled()) results_sub_ = nh_.subscribe("/results", 100, &SimulationLoop::on_results, this);
   renderer_.reset(new Renderer(cfg_, world_.map(), world_.robots(), *laser_));
   services_.reset(new Services(nh_, pnh_, &world_, cfg_.drive.radius, renderer_.get(), clock_.get()));
   const LaserConfig& l = cfg_.laser;
@@ -90,16 +94,11 @@ bool SimulationLoop::wait_for_commands() {
   auto wall = [](Steady::time_point t) { return std::chrono::duration<double>(t.time_since_epoch()).count(); };
   auto start = Steady::now();
   bool go_held = false;
-  while (ros::ok() && go_until_ >= 0) {  // every robot ready, or GO came in the last step
+  while (ros::ok() && go_->holding(wall(Steady::now()))) {  // every robot ready, or GO came (go_hold.h)
     if (!go_held) ++go_holds_;
     go_held = true;
-    double left = go_until_ - wall(Steady::now());
-    if (left <= 0) {
-      go_until_ = -1;
-      if (awaiting_go_) ++go_timeouts_;  // no GO came: the clock runs on (and waits no more for it)
-      break;
-    }
-    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(std::min(left, 0.01)));
+    double left = go_->until() - wall(Steady::now());
+    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(std::max(0.0, std::min(left, 0.01))));
   }
   if (go_held) {
     go_wall_ += std::chrono::duration<double>(Steady::now() - start).count();
@@ -132,27 +131,11 @@ bool SimulationLoop::wait_for_commands() {
   return ever_held;
 }
 
-namespace {
-const double kGoAnnounceWait = 2.0;  // wall s the clock waits at most for GO once every robot is ready
-}
-
 void SimulationLoop::on_results(const std_msgs::Int16MultiArray::ConstPtr& msg) {
-  const std::vector<int16_t>& d = msg->data;
-  if (go_seen_ || d.size() < 3 || d[1] != 10) return;  // MSG_INIT: [id, 10, 1] ready, [-1, 10, 100] GO
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-  if (d[0] == -1 && d[2] == 100) {
-    go_seen_ = true;
-    awaiting_go_ = false;
-    go_until_ = wall + cfg_.go_wait;
-    ROS_INFO("stage2d: GO at sim %.2f s; the clock stands still for %g wall s", clock_->now(), cfg_.go_wait);
-    results_sub_.shutdown();  // nothing else on /results concerns the simulator
-  } else if (d[2] == 1 && d[0] >= 0 && static_cast<size_t>(d[0]) < ready_.size() && !awaiting_go_) {
-    ready_[d[0]] = true;
-    if (std::all_of(ready_.begin(), ready_.end(), [](bool b) { return b; })) {
-      awaiting_go_ = true;  // the monitor sends GO now
-      go_until_ = wall + kGoAnnounceWait;
-    }
-  }
+  if (!go_->on_results(msg->data, wall)) return;
+  ROS_INFO("stage2d: GO at sim %.2f s; the clock stands still for %g wall s", clock_->now(), cfg_.go_wait);
+  results_sub_.shutdown();  // nothing else on /results concerns the simulator
 }
 
 double SimulationLoop::stale_command_fraction() const {
@@ -181,13 +164,13 @@ void SimulationLoop::publish_status(double rtf) {
      << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction())
      << ", \"sync_waits\": " << sync_waits_ << ", \"sync_timeouts\": " << sync_timeouts_
      << ", \"clock_holds\": " << sync_waits_ + hold_->holds() + hold_->stop_waits() + go_holds_
-     << ", \"hold_timeouts\": " << sync_timeouts_ + hold_->timeouts() + hold_->stop_timeouts() + go_timeouts_
+     << ", \"hold_timeouts\": " << sync_timeouts_ + hold_->timeouts() + hold_->stop_timeouts() + go_->timeouts()
      << ", \"held_wall\": " << fmt("%.3f", wait_wall_ + go_wall_)
      << ", \"hold_reasons\": {\"commands\": {\"holds\": " << sync_waits_ << ", \"timeouts\": " << sync_timeouts_
      << ", \"wall\": " << fmt("%.3f", wait_wall_ - held_wall_) << "}, \"reaction\": {\"holds\": " << hold_->holds()
      << ", \"timeouts\": " << hold_->timeouts() << ", \"wall\": " << fmt("%.3f", held_wall_)
      << "}, \"result\": {\"holds\": " << hold_->stop_waits() << ", \"timeouts\": " << hold_->stop_timeouts()
-     << "}, \"go\": {\"holds\": " << go_holds_ << ", \"timeouts\": " << go_timeouts_
+     << "}, \"go\": {\"holds\": " << go_holds_ << ", \"timeouts\": " << go_->timeouts()
      << ", \"wall\": " << fmt("%.3f", go_wall_) << "}}}";
   std_msgs::String m;
   m.data = js.str();

@@ -1,7 +1,8 @@
 // Simulation loop: builds the simulator from its parameters, then runs it -- each step waits
-// for the commands of the driven robots and for the robots' reactions (reaction_hold.h), moves the world, publishes the state and the scans
-// that are due, and paces sim time against the wall clock (~speedup); it also reports its
-// status (~status topic, periodic log line).
+// for the commands of the driven robots, for the robots' reactions (reaction_hold.h) and
+// around GO (go_hold.h), moves the world, publishes the state and the scans that are due, and
+// paces sim time against the wall clock (~speedup); it also reports its status (~status
+// topic, periodic log line).
 #pragma once
 
 #include <memory>
@@ -12,6 +13,7 @@
 #include <std_msgs/Int16MultiArray.h>
 
 #include "patrol_stage2d/config.h"
+#include "patrol_stage2d/go_hold.h"
 #include "patrol_stage2d/laser.h"
 #include "patrol_stage2d/reaction_hold.h"
 #include "patrol_stage2d/renderer.h"
@@ -46,16 +48,9 @@ class SimulationLoop {
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Services> services_;
   ros::Publisher status_pub_;
-  // GO hold: from the last robot's ready announcement ([id, 10, 1] on /results) the clock
-  // stands still until GO (at most kGoAnnounceWait wall s: the monitor sends GO at once and
-  // takes its GO time then), and then for ~go_wait wall s: GO reaches each agent on its own
-  // connection, and an agent that reads it a step later starts its whole patrol a step later
-  // (GO asks for no answer: no sign but time says that every agent has read it)
+  std::unique_ptr<GoHold> go_;    // the GO hold (go_hold.h), fed from /results
   ros::Subscriber results_sub_;
-  std::vector<bool> ready_;
-  bool go_seen_ = false, awaiting_go_ = false;
-  double go_until_ = -1;   // wall time (steady clock, s) the GO hold ends; < 0: none pending
-  long go_holds_ = 0, go_timeouts_ = 0;
+  long go_holds_ = 0;
   double go_wall_ = 0;     // wall s the clock stood still for GO
   double next_scan_ = 0, next_snapshot_ = 0;
   long sync_waits_ = 0, sync_timeouts_ = 0;
