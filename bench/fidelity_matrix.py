@@ -3,8 +3,9 @@
 algorithm) with stored runs of the original's own agents (tests/unit/data/original_matrix/,
 README there), the mean of those runs against this project's graph mode in the same world
 (the same map, team, default start positions and duration; straight-line travel at 1 m/s, no
-interference, goal wait 0) over several seeds, and against this project's agents in ROS mode
-(the abstract world) where the runs file holds runs of ours for the cell.
+interference, goal wait 0, the agents' clock started ``GO_TIME`` s before GO) over several
+seeds, and against this project's agents in ROS mode (the abstract world) where the runs file
+holds runs of ours for the cell.
 
 Figures: average idleness (mean of the idleness samples), maximum idleness, visits; each
 compared with the original's mean within the tolerances of tests/unit/original_matrix.py
@@ -166,7 +167,8 @@ def page(cells, known, seeds, runs_path):
         "project's monitor; how, in the README beside the runs file) against this project's "
         "graph mode in the same world: the same map, team and default start positions, "
         f"{' and '.join(f'{d:g}' for d in durations)} sim s after GO, straight-line travel "
-        "at 1 m/s, no interference, goal wait 0, seeds 0 to "
+        f"at 1 m/s, no interference, goal wait 0, the agents' clock started {om.GO_TIME:g} s "
+        "before GO (docs/fidelity.md, \"The clock at GO\"), seeds 0 to "
         f"{seeds - 1}. Figures: average idleness (s, mean of the idleness samples) / maximum "
         "idleness (s) / visits, means over the runs; differences relative to the original's "
         f"mean. Within tolerance: average {om.TOL['avg']:.0%}, maximum "

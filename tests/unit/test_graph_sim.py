@@ -85,11 +85,30 @@ def test_goal_wait_slows_visits(tmp_path):
     assert slow.total_visits + 25 == pytest.approx((fast.total_visits + 25) / 2, rel=0.03)
 
 
+def test_go_time_is_how_long_the_agents_clock_ran_before_go(tmp_path):
+    """As in ROS mode, where the agents' clock starts with the simulator: a vertex a robot
+    has not visited has the idleness of the clock, counted from ``go_time`` s before GO."""
+    figures = {}
+    for go in (0.0, 7.0):
+        sim = GraphSimulator(GraphSimConfig(results_dir=str(tmp_path), map="grid", robots=1,
+                                            alg="CR", duration=20.0, go_time=go))
+        stats = sim.run(write=False)
+        strat = sim.robots[0].core.strategy
+        assert strat.clock_zero == -go
+        unseen = [v for v in range(sim.g.n) if strat.last_visit[v] == -go]
+        assert unseen
+        assert all(strat.idleness[v] >= go + 10.0 for v in unseen)   # refreshed after 10 s
+        figures[go] = (stats.total_visits, len(unseen))
+    assert figures[0.0] == figures[7.0]      # CR's argmax does not move with the offset
+
+
 @pytest.mark.parametrize("kw,needle", [
     (dict(alg="NOPE"), "argument --alg: unknown algorithm 'NOPE'"),
     (dict(robots=0), "argument --robots"),
     (dict(duration=0), "argument --duration"),
     (dict(loss=1.0), "argument --loss"),
+    (dict(go_time=-1.0), "argument --go-time"),
+    (dict(go_time=float("inf")), "argument --go-time"),
     (dict(map="atlantis"), "atlantis"),
 ])
 def test_bad_config(kw, needle, tmp_path):

@@ -119,6 +119,11 @@ class PatrolStrategy:
         a changed file at the same path makes a new run. Default: none ({})."""
         return {}
 
+    #: the time, on the driver's clock, of the agent's clock zero: the original's agents take
+    #: every vertex as last visited then (:meth:`start`). 0 in ROS mode, where the clock starts
+    #: with the simulator, before GO; graph mode's GO is t = 0 and it sets ``-go_time``
+    clock_zero = 0.0
+
     def __init__(self, ctx: StrategyContext):
         self.ctx = ctx
         self.graph = ctx.graph
@@ -150,15 +155,16 @@ class PatrolStrategy:
 
     def start(self, start_vertex: int, now: float) -> None:
         """Called once at GO, before the first decision. Default, as the original's agent:
-        every vertex was last visited at time 0 (the clock's zero), the start vertex at 0.1
-        (so that it looks visited), and the idleness table is all zero: the original does not
-        refresh it before its first decision, so the first choice of an idleness-driven rule
-        is a tie among the neighbours (broken uniformly with ``rng``), HCR's and HPCC's the
-        nearest candidate. ``now`` is not used by the default (graph mode's GO is t = 0; ROS
-        mode's clock also starts at 0)."""
+        every vertex was last visited at the clock's zero (:attr:`clock_zero`), the start
+        vertex 0.1 s later (so that it looks visited), and the idleness table is all zero:
+        the original does not refresh it before its first decision, so the first choice of an
+        idleness-driven rule is a tie among the neighbours (broken uniformly with ``rng``),
+        HCR's and HPCC's the nearest candidate. A vertex the robot has not visited since
+        keeps the idleness of the clock, which ran before GO. ``now`` is not used by the
+        default."""
         self.current = start_vertex
-        self.last_visit = [0.0] * self.graph.n
-        self.last_visit[start_vertex] = 0.1
+        self.last_visit = [self.clock_zero] * self.graph.n
+        self.last_visit[start_vertex] = self.clock_zero + 0.1
         self.idleness = [0.0] * self.graph.n
 
     def next_vertex(self, now: float) -> int:

@@ -34,6 +34,11 @@ def build_parser():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--speed", type=float, default=1.0, help="robot speed (m/s)")
     ap.add_argument("--gwait", type=float, default=0.0, help="goal wait (s)")
+    ap.add_argument("--go-time", type=float, default=0.0,
+                    help="s the agents' clock ran before GO (default 0): as in ROS mode, "
+                         "where it starts with the simulator, the idleness of a vertex an "
+                         "agent has not visited counts from the clock's zero "
+                         "(docs/fidelity.md, \"The clock at GO\")")
     ap.add_argument("--comm-delay", type=float, default=0.0, help="message delay (s)")
     ap.add_argument("--loss", type=float, default=0.0, help="message loss rate [0, 1)")
     ap.add_argument("--initpos", default="default",
@@ -74,8 +79,8 @@ def check_first_run(a):
     results folder. Raises PatrolInputError on the first problem."""
     first = GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
                            cycles=a.cycles, seed=a.seed, speed=a.speed, gwait=a.gwait,
-                           comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
-                           results_dir=a.results_dir, comm=a.comm,
+                           go_time=a.go_time, comm_delay=a.comm_delay, loss=a.loss,
+                           initpos=a.initpos, results_dir=a.results_dir, comm=a.comm,
                            attrition=a.attrition, policy=a.policy).validate()
     _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos,
                                                  alg=first.alg, seed=first.seed)
@@ -89,8 +94,8 @@ def run_config(a, seed):
     """The GraphSimConfig of the run with ``seed`` of the parsed command line ``a``."""
     return GraphSimConfig(map=a.map, robots=a.robots, alg=a.alg, duration=a.duration,
                           cycles=a.cycles, seed=seed, speed=a.speed, gwait=a.gwait,
-                          comm_delay=a.comm_delay, loss=a.loss, initpos=a.initpos,
-                          results_dir=a.results_dir, goal_fail=a.goal_fail,
+                          go_time=a.go_time, comm_delay=a.comm_delay, loss=a.loss,
+                          initpos=a.initpos, results_dir=a.results_dir, goal_fail=a.goal_fail,
                           interference=a.interference == "on", travel=a.travel,
                           comm=a.comm, attrition=a.attrition, policy=a.policy)
 

@@ -38,6 +38,10 @@ class GraphSimConfig:
     seed: int = 0
     speed: float = 1.0              # m/s along graph edges (or straight lines)
     gwait: float = 0.0
+    go_time: float = 0.0            # s the agents' clock ran before GO, as in ROS mode,
+    #                                 where it starts with the simulator: the idleness of a
+    #                                 vertex an agent has not visited counts from then
+    #                                 (PatrolStrategy.clock_zero = -go_time)
     comm_delay: float = 0.0
     loss: float = 0.0
     initpos: str = "default"        # start positions, any form of
@@ -74,6 +78,9 @@ class GraphSimConfig:
             raise PatrolInputError(f"argument --speed: must be > 0, got {self.speed}")
         if self.gwait < 0:
             raise PatrolInputError(f"argument --gwait: must be >= 0, got {self.gwait}")
+        if not 0 <= self.go_time < math.inf:
+            raise PatrolInputError(f"argument --go-time: must be >= 0 and finite, got "
+                                   f"{self.go_time}")
         if self.comm_delay < 0:
             raise PatrolInputError(f"argument --comm-delay: must be >= 0, got {self.comm_delay}")
         if not 0 <= self.loss < 1:

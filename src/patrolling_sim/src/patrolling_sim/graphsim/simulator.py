@@ -219,6 +219,7 @@ class GraphSimulator(FeedbackTicks):
                                  occupancy=self.occupancy, positions=self.true_position,
                                  silence_check=bool(self.schedule_failures),
                                  strategy_class=self.strategy_class)
+        robot.core.strategy.clock_zero = -cfg.go_time    # GO is t = 0 here
         if self.perfect_comm:
             robot.core.team_pos = self.team_pos
 
