@@ -5,7 +5,9 @@ every other map the original builds its longest cycle or longest path with detou
 (``patrolling_sim.planning.cyclic_route``). The pinned figures below were computed by that code; the
 properties checked next to them (every vertex and every edge covered, consecutive entries
 adjacent, a path walked back from a degree-1 vertex, a cycle closed on itself) hold for the
-original's construction and would catch a wrong port.
+original's construction and would catch a wrong port. On example the route is also checked
+entry by entry against the one the original's own Cyclic agents printed ("Final Path" in
+their logs, robots at vertices 17 and 0, abstract world).
 """
 import logging
 
@@ -26,7 +28,7 @@ PINNED = {
     "broughton": ("path", 673, 29510, [7, 8, 2, 0, 1, 3, 1, 0, 2, 3]),
     "1r5": ("path", 37, 2512, [3, 1, 0, 1, 5, 10, 8, 10, 11, 10]),
     "ctcv": ("path", 43, 2664, [0, 1, 2, 1, 4, 3, 4, 5, 6, 7]),
-    "example": ("cycle", 53, 2572, [21, 20, 21, 22, 17, 18, 17, 11, 17, 22]),
+    "example": ("cycle", 53, 2572, [10, 9, 7, 9, 15, 9, 10, 11, 5, 6]),
     "DIAG_floor1": ("path", 191, 12628, [4, 8, 6, 0, 6, 5, 1, 5, 7, 2]),
     "move_base_arena": ("cycle", 29, 1831, [6, 5, 6, 11, 13, 11, 3, 12, 3, 13]),
     "grid": ("hamiltonian", 49, 3648, [0, 1, 6, 5, 10, 11, 16, 15, 20, 21]),
@@ -39,6 +41,27 @@ def load(mapname):
 
 def test_every_shipped_map_is_pinned():
     assert sorted(PINNED) == paths.available_maps()
+
+
+#: the original's Cyclic agents' "Final Path" on example (the route rotated to the first
+#: occurrence of the robot's start vertex), copied from their logs
+ORIGINAL_EXAMPLE = {
+    17: [17, 22, 17, 18, 17, 11, 8, 12, 13, 3, 13, 18, 26, 19, 26, 28, 27, 28, 22, 21, 20, 21,
+         24, 23, 24, 25, 24, 27, 20, 15, 16, 14, 10, 9, 7, 9, 15, 9, 10, 11, 5, 6, 5, 2, 5, 1,
+         0, 1, 4, 1, 5, 11, 17],
+    0: [0, 1, 4, 1, 5, 11, 17, 22, 17, 18, 17, 11, 8, 12, 13, 3, 13, 18, 26, 19, 26, 28, 27,
+        28, 22, 21, 20, 21, 24, 23, 24, 25, 24, 27, 20, 15, 16, 14, 10, 9, 7, 9, 15, 9, 10, 11,
+        5, 6, 5, 2, 5, 1, 0],
+}
+
+
+def test_example_route_is_the_one_the_original_agents_print():
+    """example lists neighbours twice with another in between (vertices 8, 12, 16): the
+    construction walks the lists in the file's order, as the original does."""
+    from patrolling_sim.algorithms.cgg import rotate_to
+    route, _ = original_cyclic_route(load("example"))
+    for start, printed in ORIGINAL_EXAMPLE.items():
+        assert rotate_to(route, start) == printed
 
 
 @pytest.mark.parametrize("mapname", sorted(PINNED))
