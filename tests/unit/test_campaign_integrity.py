@@ -50,16 +50,15 @@ def test_a_second_campaign_on_the_same_folder_fails_at_once(tmp_path):
     while time.monotonic() < deadline and not (os.path.exists(lock)
                                                and os.path.getsize(lock)):
         time.sleep(0.05)
-    t0 = time.monotonic()
     second = _cli(camp, "--out", out, "--no-report")
-    took = time.monotonic() - t0
+    first_running = first.poll() is None     # the second did not wait for the lock
     first_out, first_err = first.communicate(timeout=300)
     assert first.returncode == 0, first_err
     assert second.returncode == 2, second.stdout + second.stderr
     lines = second.stderr.strip().splitlines()
     assert len(lines) == 1 and "in use by another campaign" in lines[0]
     assert f"pid {first.pid}" in lines[0]
-    assert took < 10, took                   # at once: no run started (seconds, a loaded CI)
+    assert first_running                     # at once: it failed while the first ran
     assert len(_rows(out)) == 30 and len(_infos(out)) == 30     # nothing ran twice
     again = _cli(camp, "--out", out, "--no-report")                # the lock is released
     assert again.returncode == 0 and "30 already done" in again.stdout, again.stderr
