@@ -6,32 +6,14 @@ compiles a small driver (``src/patrol_stage2d/test/go_hold_check.cpp``) and feed
 scripts with wall times given as numbers (no timing). Events: ``msg WALL A B C`` (prints 1 for
 the first GO), ``hold WALL`` (prints ``1 END`` while the clock stands still, else ``0``),
 ``counts`` (the time-outs)."""
-import os
-import shutil
-import subprocess
-
 import pytest
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-PKG = os.path.join(ROOT, "src", "patrol_stage2d")
-CXX = shutil.which("g++") or shutil.which("c++")
+import stage2d_driver
 
 
 @pytest.fixture(scope="module")
 def driver(tmp_path_factory):
-    if CXX is None:
-        pytest.skip("no C++ compiler")
-    exe = str(tmp_path_factory.mktemp("go") / "go_hold_check")
-    subprocess.run([CXX, "-std=c++14", "-Wall", "-Wextra", "-Werror", "-O0",
-                    "-I", os.path.join(PKG, "include"),
-                    os.path.join(PKG, "test", "go_hold_check.cpp"), "-o", exe], check=True)
-
-    def run(header, events, rc=0):
-        p = subprocess.run([exe], input=header + "\n" + "\n".join(events) + "\n",
-                           capture_output=True, text=True)
-        assert p.returncode == rc, p.stderr
-        return [line for line in p.stdout.split("\n") if line]
-    return run
+    return stage2d_driver.build(tmp_path_factory, "go_hold_check")
 
 
 def test_from_the_last_ready_until_go_then_go_wait(driver):

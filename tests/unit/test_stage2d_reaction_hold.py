@@ -4,31 +4,14 @@ same simulated time at any pace. The header is pure logic; this test compiles a 
 (``src/patrol_stage2d/test/reaction_hold_check.cpp``) and feeds it event scripts with sim
 and wall times given as numbers (no timing). Events: ``goal I ID SIM``, ``result I ID OK
 SIM``, ``cmd I MOVING SIM``, ``hold SIM WALL`` (prints 1 if the clock stands still)."""
-import os
-import shutil
-import subprocess
-
 import pytest
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-PKG = os.path.join(ROOT, "src", "patrol_stage2d")
-CXX = shutil.which("g++") or shutil.which("c++")
+import stage2d_driver
 
 
 @pytest.fixture(scope="module")
 def driver(tmp_path_factory):
-    if CXX is None:
-        pytest.skip("no C++ compiler")
-    exe = str(tmp_path_factory.mktemp("hold") / "reaction_hold_check")
-    subprocess.run([CXX, "-std=c++14", "-Wall", "-Wextra", "-Werror", "-O0",
-                    "-I", os.path.join(PKG, "include"),
-                    os.path.join(PKG, "test", "reaction_hold_check.cpp"), "-o", exe], check=True)
-
-    def run(header, events):
-        out = subprocess.run([exe], input=header + "\n" + "\n".join(events) + "\n",
-                             capture_output=True, text=True, check=True).stdout
-        return [line for line in out.split("\n") if line]
-    return run
+    return stage2d_driver.build(tmp_path_factory, "reaction_hold_check")
 
 
 def test_arrival_holds_until_the_next_goals_first_command(driver):
