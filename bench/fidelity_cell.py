@@ -34,6 +34,7 @@ sys.path.insert(0, os.path.join(ROOT, "src", "spqrel_nav_lite", "src"))
 import original_matrix as om  # noqa: E402
 from patrolling_sim.algorithms.wallclock import EPOCH_PARAM, PACE_PARAM  # noqa: E402
 from patrolling_sim.graphsim.simulator import GraphSimulator  # noqa: E402
+from wallclock_draws import epoch_of  # noqa: E402  (bench/, beside this script)
 
 
 def parse_seeds(words):
@@ -52,13 +53,10 @@ def parse_seeds(words):
 
 def graph_run(map_name, robots, alg, seed, duration, goal_wait, pace, go_time):
     """(avg, max, visits, fewest visit reports of a vertex) of one graph-mode run."""
-    cfg = om.graph_config(map_name, robots, alg, seed, duration)
+    cfg = om.graph_config(map_name, robots, alg, seed, duration, go_time=go_time)
     cfg.gwait = goal_wait
-    if go_time is not None:
-        cfg.go_time = go_time
     if pace:
-        cfg.params = dict(cfg.params or {}, **{PACE_PARAM: pace,
-                                               EPOCH_PARAM: 1_700_000_000 + 7919 * seed})
+        cfg.params = dict(cfg.params or {}, **{PACE_PARAM: pace, EPOCH_PARAM: epoch_of(seed)})
     s = GraphSimulator(cfg).run(write=False)
     fewest = min(v.visits + 1 for v in s.per_vertex)   # idleness samples + the first visit
     return s.global_avg, s.global_max, s.total_visits, fewest

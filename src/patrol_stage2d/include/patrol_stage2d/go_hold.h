@@ -63,7 +63,6 @@ class GoHold {
 
   // The wall time the current hold ends (< 0: no hold pending).
   double until() const { return end_; }
-  bool go_seen() const { return go_seen_; }
   long timeouts() const { return timeouts_; }  // waits for GO that ended without it
 
  private:
