@@ -13,12 +13,16 @@ read with the report's reader (``patrolling_sim.report.loading.load_run``).
 ``--load N`` starts N busy-loop processes (in a process group of their own) before the runs
 and stops them after. Runs at a pace of at most 2 use little CPU; ``--parallel K`` runs up
 to K of them at a time (every other run goes alone). ``--nav`` / ``--loc`` pass through to the
-runner (``--nav spqrel_nav_lite --loc AMCL`` for the full stack); ``--extra`` more flags.
+runner (``--nav spqrel_nav_lite --loc AMCL`` for the full stack); ``--extra`` more flags. After each
+algorithm's seeds the table has a ``mean`` line: per pace, the mean over its seeds (and
+repetitions) of the average and the maximum idleness, and their largest relative difference.
+``--table-from JSON`` prints the table of a ``--json`` file written before, running nothing.
 
 Usage:
     bench/pace_bench.py [--algs CGG SEBS DTAG DTAP] [--seeds 1 2 3] [--speedups 1 20]
         [--duration 300] [--repeats 1] [--load N] [--parallel K] [--nav abstract] [--loc LOC]
         [--map grid] [--robots 4] [--keep DIR] [--markdown FILE] [--json FILE]
+    bench/pace_bench.py --table-from FILE.json
 """
 import argparse
 import json
@@ -126,7 +130,34 @@ def table(rows, paces):
             f"{' / '.join(fmt(r.get('achieved'), '.2f') for r in rs)} | "
             + " / ".join(f"{fmt(r.get('holds'), 'd')} ({fmt(r.get('timeouts'), 'd')})"
                          for r in rs) + " |")
+        if alg_done(keys, alg, seed, rep):
+            avg, mx = seed_means(rows, alg, paces)
+            lines.append(
+                f"| {alg} | mean | {' / '.join(fmt(x) for x in avg)} | "
+                f"{' / '.join(fmt(x) for x in mx)} | {fmt(spread(avg), '.1%')} | "
+                f"{fmt(spread(mx), '.1%')} | | |")
     return "\n".join(lines)
+
+
+def alg_done(keys, alg, seed, rep):
+    """True after the last row of ``alg`` when it has more than one seed or repetition."""
+    mine = [k for k in keys if k[0] == alg]
+    return len(mine) > 1 and mine[-1] == (alg, seed, rep)
+
+
+def seed_means(rows, alg, paces):
+    """Per pace, the mean over ``alg``'s runs of the average and of the maximum idleness.
+
+    A pace gets None when any of the algorithm's seeds or repetitions has no figure there, so
+    a mean is only ever over the same runs at every pace."""
+    keys = {(r["seed"], r["rep"]) for r in rows if r["alg"] == alg}
+    by = {(r["seed"], r["rep"], r["pace"]): r for r in rows if r["alg"] == alg}
+    out = ([], [])
+    for p in paces:
+        for i, m in enumerate(("avg", "max")):
+            v = [by.get((s, k, p), {}).get(m) for s, k in keys]
+            out[i].append(None if not v or None in v else sum(v) / len(v))
+    return out
 
 
 def main():
@@ -150,7 +181,19 @@ def main():
     ap.add_argument("--keep", help="keep the runs' files in this folder")
     ap.add_argument("--markdown", help="also write the table to this file")
     ap.add_argument("--json", help="also write every run's figures to this file")
+    ap.add_argument("--table-from", metavar="JSON",
+                    help="print the table of a --json file written before, and run nothing")
     a = ap.parse_args()
+    if a.table_from:
+        try:
+            with open(a.table_from, encoding="utf-8") as f:
+                rows = json.load(f)
+            paces = sorted({r["pace"] for r in rows})
+            text = table(rows, paces)
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            sys.exit(f"pace_bench.py: --table-from {a.table_from}: {e}")
+        print(text)
+        return 0
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))    # stop the runs, then exit
     out = a.keep or tempfile.mkdtemp(prefix="pace_bench_")
     jobs = [(alg, seed, pace, k) for pace in a.speedups for alg in a.algs for seed in a.seeds
