@@ -24,7 +24,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from patrolling_sim.agent.faults import MIN_COMM_DELAY, ScenarioMixin
 from patrolling_sim.algorithms.base import MSG_FAILURE, Driver, PatrolStrategy
-from patrolling_sim.common.protocol import MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED
+from patrolling_sim.common.protocol import (MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED,
+                                            START_DELAY_MAX)
 
 MONITOR_ID = -1
 GO = 100
@@ -186,7 +187,7 @@ class PatrolAgentCore(ScenarioMixin, Driver):
         if data[0] == MONITOR_ID and data[1] == MSG_INIT:
             if len(data) > 2 and data[2] == GO and self.phase in ("init", "ready"):
                 self.phase = "starting"
-                delay = self.jitter_rng.uniform(0.0, 1.0)
+                delay = self.jitter_rng.uniform(0.0, START_DELAY_MAX)
                 self.fx.log(f"robot {self.id}: GO received, starting in {delay:.2f} s")
                 self._later(delay, self._begin)
             elif len(data) > 2 and data[2] == END and self.phase != "ended":

@@ -57,6 +57,9 @@ MSG_LEARNED_VISIT = 57
 GO = 100
 END = 999
 ROBOT_READY = 1
+#: s: after GO each agent waits a random U(0, START_DELAY_MAX) s before its first goal, so
+#: that the robots do not all start at once (the original's agents do the same)
+START_DELAY_MAX = 1.0
 
 #: largest value of an int16 payload entry (every /results entry is an int16)
 INT16_MAX = 32767
