@@ -29,8 +29,9 @@ and which agents' processes had ended before the run did (their robots stood sti
 
 The original's agents are not part of this repository. Build them yourself from the
 original's public source (version 2.2.4) in a catkin workspace of their own, package name
-``patrolling_sim`` (the agents find their graph through that name); see docs/fidelity.md
-for the build flags Debian 12 needs. Because both packages are called ``patrolling_sim``,
+``patrolling_sim`` (the agents find their graph through that name):
+``bench/build_original_agents.sh SRC WS`` does it with the flags Debian 12 needs
+(docs/fidelity.md). Because both packages are called ``patrolling_sim``,
 the agents run with their workspace's environment and the world and monitor with ours.
 
 With ``--ours shared|separate`` every run of the original is followed by a run of our agents
