@@ -7,8 +7,9 @@ abstract world, grid, 4 robots at their default start vertices, 300 sim s after 
 ``--processes shared``); prints per algorithm and seed the average idleness (mean of the
 monitor's samples, as the fidelity tables) and the maximum (info.csv) at each pace, the
 largest relative difference between the paces of each, the achieved pace and the clock
-holds / timed-out waits from the run record (``<prefix>_run.yaml``, ``clock``). Files are
-read with the report's reader (``patrolling_sim.report.loading.load_run``).
+holds / timed-out waits from the run record (``<prefix>_run.yaml``, ``clock``), and the
+interferences (info.csv; on the full stack robots that meet pause, which moves the
+figures). Files are read with the report's reader (``patrolling_sim.report.loading.load_run``).
 
 ``--load N`` starts N busy-loop processes (in a process group of their own) before the runs
 and stops them after. Runs at a pace of at most 2 use little CPU; ``--parallel K`` runs up
@@ -94,6 +95,7 @@ def run_one(a, alg, seed, pace, out, rep=0):
     row.update(prefix=prefixes[0], status=run.status,
                avg=float(run.samples["Idleness"].mean()) if len(run.samples) else None,
                max=run.info["idl_max"], visits=run.info["total_visits"],
+               interferences=run.info["interferences"],
                achieved=clock.get("pace_achieved"), holds=clock.get("holds"),
                timeouts=clock.get("hold_timeouts"))
     return row
@@ -113,7 +115,7 @@ def table(rows, paces):
     keys = sorted({(r["alg"], r["seed"], r["rep"]) for r in rows})
     ps = " / ".join(f"x{p:g}" for p in paces)
     lines = [f"| alg | seed | avg idleness s ({ps}) | max idleness s ({ps}) | diff avg | "
-             f"diff max | achieved pace | holds (timed out) |", "|---" * 8 + "|"]
+             f"diff max | achieved pace | holds (timed out) | interferences |", "|---" * 9 + "|"]
 
     def fmt(x, spec=".1f"):
         return "-" if x is None else format(x, spec)
@@ -129,13 +131,14 @@ def table(rows, paces):
             f"{' / '.join(fmt(x) for x in mx)} | {fmt(da, '.1%')} | {fmt(dm, '.1%')} | "
             f"{' / '.join(fmt(r.get('achieved'), '.2f') for r in rs)} | "
             + " / ".join(f"{fmt(r.get('holds'), 'd')} ({fmt(r.get('timeouts'), 'd')})"
-                         for r in rs) + " |")
+                         for r in rs) + " | "
+            + " / ".join(fmt(r.get("interferences"), "d") for r in rs) + " |")
         if alg_done(keys, alg, seed, rep):
             avg, mx = seed_means(rows, alg, paces)
             lines.append(
                 f"| {alg} | mean | {' / '.join(fmt(x) for x in avg)} | "
                 f"{' / '.join(fmt(x) for x in mx)} | {fmt(spread(avg), '.1%')} | "
-                f"{fmt(spread(mx), '.1%')} | | |")
+                f"{fmt(spread(mx), '.1%')} | | | |")
     return "\n".join(lines)
 
 

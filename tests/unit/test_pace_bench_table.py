@@ -30,11 +30,23 @@ def test_mean_line_over_the_seeds():
     lines = pb.table(rows, [1.0, 8.0]).splitlines()
     mean = [ln for ln in lines if "| mean |" in ln]
     # CGG has two seeds: (40 + 50) / 2 = 45 at x1, (44 + 46) / 2 = 45 at x8; maxima 150 / 150
-    assert mean == ["| CGG | mean | 45.0 / 45.0 | 150.0 / 150.0 | 0.0% | 0.0% | | |"]
+    assert mean == ["| CGG | mean | 45.0 / 45.0 | 150.0 / 150.0 | 0.0% | 0.0% | | | |"]
     # the mean line follows CGG's last seed; SEBS (one seed) gets none
     assert lines.index(mean[0]) == 4
     assert lines[3].startswith("| CGG | 2 |") and "10.0%" not in lines[3]
     assert "| CGG | 1 | 40.0 / 44.0 | 100.0 / 110.0 | 10.0% | 10.0% |" in lines[2]
+
+
+def test_interferences_column_per_pace():
+    pb = load()
+    rows = [dict(row("CGG", 1, 2.0, 44.1, 201.9), interferences=10),
+            dict(row("CGG", 1, 8.0, 51.4, 220.9), interferences=14)]
+    lines = pb.table(rows, [2.0, 8.0]).splitlines()
+    assert lines[0].endswith("| holds (timed out) | interferences |")
+    assert lines[2].endswith("| 1 (0) / 1 (0) | 10 / 14 |")
+    # runs recorded without the figure (older --json files) print a dash
+    lines = pb.table([row("CGG", 1, 2.0, 44.1, 201.9)], [2.0]).splitlines()
+    assert lines[2].endswith("| 1 (0) | - |")
 
 
 def test_mean_is_none_where_a_seed_is_missing():
