@@ -27,6 +27,20 @@ def test_hand_computed_two_vertices():
     assert m.visit_frequency_sd == pytest.approx(180.0)
     assert m.never_visited == 0
     assert m.n_visits == 3
+    assert m.sample_coverage == pytest.approx(4.0 / 20.0)   # one 4 s sample in V x T = 20 s
+
+
+def test_sample_average_is_spans_over_samples_and_coverage_counts_closed_gaps():
+    # A vertex reached late, one left early and one never visited: their open gaps leave the
+    # samples, so the sample average stays low while most of the run is outside it.
+    visits = [(0.0, 0, 0), (10.0, 0, 0), (20.0, 0, 0),    # vertex 0: two 10 s samples
+              (80.0, 1, 1), (90.0, 1, 1),                  # vertex 1: first visit at 80 s
+              (0.0, 2, 2), (5.0, 2, 2)]                    # vertex 2: last visit at 5 s
+    m = compute_metrics(visits, n_vertices=4, duration=100.0)
+    # sum over vertices of (last - first) = 20 + 10 + 5 over 2 + 1 + 1 samples
+    assert m.sample_avg_idleness == pytest.approx(35.0 / 4.0)
+    assert m.sample_coverage == pytest.approx(35.0 / 400.0)
+    assert m.never_visited == 1
 
 
 def test_unvisited_vertex_and_visits_after_the_end():

@@ -48,6 +48,10 @@ class RunMetrics:
     visit_frequency_mean: float        # visits per hour per vertex
     visit_frequency_sd: float          # population SD over vertices
     never_visited: int
+    # share of the vertex-time V x T inside the idleness samples (closed gaps): what share of
+    # the run sample_avg_idleness describes; the rest is open gaps (before a vertex's first
+    # visit, after its last, vertices never visited), which the samples leave out
+    sample_coverage: float
     per_vertex_visits: List[int] = field(default_factory=list)
     extra: Dict[str, object] = field(default_factory=dict)
 
@@ -142,6 +146,7 @@ def compute_metrics(visits: Iterable[Tuple[float, int, int]], n_vertices: int,
         visit_frequency_mean=float(freq.mean()),
         visit_frequency_sd=float(freq.std()),
         never_visited=sum(1 for c in counts if c == 0),
+        sample_coverage=sum(samples) / (n_vertices * duration) if duration > 0 else 0.0,
         per_vertex_visits=counts,
         extra=dict(extra or {}),
     )
