@@ -24,12 +24,9 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from patrolling_sim.agent.faults import MIN_COMM_DELAY, ScenarioMixin
 from patrolling_sim.algorithms.base import MSG_FAILURE, Driver, PatrolStrategy
-from patrolling_sim.common.protocol import (MSG_INIT, MSG_INTERFERENCE, MSG_TARGET_REACHED,
-                                            START_DELAY_MAX)
+from patrolling_sim.common.protocol import (END, GO, MONITOR_ID, MSG_INIT, MSG_INTERFERENCE,
+                                            MSG_TARGET_REACHED, START_DELAY_MAX)
 
-MONITOR_ID = -1
-GO = 100
-END = 999
 ANNOUNCE_PERIOD = 2.0          # s between two [id,10,1] announcements
 MAX_RESENDS = 3                # resends of the same goal before strategy.on_goal_failed
 BACKUP_DURATION = 1.0          # s the back-up manoeuvre takes before the goal is resent
