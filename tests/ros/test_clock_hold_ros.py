@@ -33,9 +33,12 @@ def test_message_hold_engages_for_dtap_and_reaches_the_run_record(tmp_path):
     go_hold = reasons["go"]
     assert go_hold["holds"] in (1, 2) and go_hold["timeouts"] == go_hold["holds"] - 1, clock
     assert go_hold["wall"] >= 0.45, clock
-    assert clock["holds"] == sum(reasons[k]["holds"] for k in ("go", "message", "reaction"))
-    assert clock["hold_timeouts"] == sum(reasons[k]["timeouts"]
-                                         for k in ("go", "message", "reaction"))
+    # the agents' reports (/sim_timers): every robot's start delay and auction ends are
+    # timers the clock waits for, and every robot arrives at least once in 60 s
+    assert set(reasons) == {"go", "message", "reaction", "timer", "arrival"}, clock
+    assert reasons["timer"]["holds"] >= 4 and reasons["arrival"]["holds"] >= 4, clock
+    assert clock["holds"] == sum(x["holds"] for x in reasons.values())
+    assert clock["hold_timeouts"] == sum(x["timeouts"] for x in reasons.values())
     assert clock["held_wall"] > 0
     # every agent read GO at the monitor's GO time or one step (0.02 s) after it
     go = received = None

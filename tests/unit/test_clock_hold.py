@@ -11,8 +11,8 @@ from patrolling_sim.runner.outcome import clock_record
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "tools"))
-from clock_hold import (GoHold, HoldCounter, MessageHold, awaited_answer,  # noqa
-                        reaction_deadline, totals)
+from clock_hold import (GoHold, HoldCounter, MessageHold, TimerReports,  # noqa
+                        awaited_answer, reaction_deadline, totals)
 
 
 def hold(team=4):
@@ -194,3 +194,40 @@ def test_go_hold_off_and_bad_wait():
     assert h.note(0.1, [-1, 10, 100]) and h.until(0.1) is None
     with pytest.raises(ValueError, match="go_wait"):
         GoHold(team=1, go_wait=-1.0)
+
+
+def test_timer_reports_hold_where_a_timer_is_due_until_it_fired():
+    r = TimerReports()
+    assert r.waiting(5.0) == []                         # no reports: nothing to wait for
+    r.note("/agents", -1.0, 1.4370)                     # a timer due at 1.437
+    r.note("/robot_1", -1.0, 1.40)
+    assert r.waiting(1.42) == ["/robot_1"]              # the first step at or after 1.40
+    assert r.waiting(1.44) == ["/robot_1", "/agents"]   # both due, earliest first
+    r.note("/robot_1", 1.44, 2.44)                      # fired at 1.44; next at 2.44
+    assert r.waiting(1.44) == ["/agents"]
+    r.note("/agents", 1.44, -1.0)                       # fired; nothing pending
+    assert r.waiting(1.44) == [] and r.waiting(100.0) == ["/robot_1"]
+    assert r.waiting(2.44 - 1e-7) == ["/robot_1"]       # within the scheduler's tolerance
+
+
+def test_timer_reports_give_up_until_the_next_report():
+    r = TimerReports()
+    r.note("/gone", 0.0, 3.0)
+    assert r.waiting(3.0) == ["/gone"]
+    r.give_up(["/gone"])                                # its wait timed out
+    assert r.waiting(3.0) == [] and r.waiting(9.0) == []
+    r.note("/gone", 3.5, 4.0)                           # it reports again: waited for again
+    assert r.waiting(4.0) == ["/gone"]
+
+
+def test_reports_of_handled_events():
+    r = TimerReports()
+    assert not r.reports(2) and r.has_handled(2, 10.0)     # no reports: nothing to wait for
+    r.note("/agents", -1.0, 5.0, robot=2, at=1.50)          # robot 2 handled GO at 1.50
+    assert r.reports(2) and not r.reports(0)
+    assert r.has_handled(2, 1.50) and not r.has_handled(2, 7.38)
+    r.note("/agents", -1.0, 5.0, robot=2, at=7.38)          # its arrival at 7.38
+    assert r.has_handled(2, 7.38) and not r.has_handled(2, 7.40)
+    r.note("/agents", 5.0, 8.0, robot=2, at=7.20)           # an older reading is no news
+    assert r.has_handled(2, 7.38)
+    assert r.waiting(8.0) == ["/agents"]                    # the timer part of the report

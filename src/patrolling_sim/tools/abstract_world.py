@@ -37,8 +37,10 @@ Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup
 ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
 ~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.2 wall s; 0 = never hold),
 ~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off),
-~auction_timers (true: hold where a DTA auction may end), ~go_wait (0.5 wall s the clock stands
-still after GO, and from the last robot's ready announcement until GO; 0 off).
+~auction_timers (true: hold where a DTA auction may end), ~timer_wait (0.5 wall s the clock
+waits at most at a step where an agent process reported a timer due; 0 off), ~go_wait (0.5
+wall s the clock stands still after GO, and from the last robot's ready announcement until
+GO; 0 off).
 
 Diagnostic: with ``PATROLLING_SIM_TRACE_AUCTIONS=1`` in its environment the node logs at
 shutdown the sim and wall s from each DTA task request (type 41) to each bid (type 42).
@@ -53,7 +55,7 @@ import time
 # the motion model lives beside this script (Python puts the script folder on sys.path)
 from straight_line_world import EPS, StraightLineWorld, read_positions
 from clock_hold import (AuctionTimers, AuctionTrace, GoHold, HoldCounter, MessageHold,
-                        reaction_deadline, totals)
+                        TimerReports, reaction_deadline, totals)
 from robot_server import RobotServer
 
 STATUS_PERIOD = 0.2        # sim s between action status messages (actionlib's 5 Hz)
@@ -72,6 +74,9 @@ MESSAGE_WAIT = 0.1
 #: wall s the clock stands still once GO is seen, so that every agent reads GO at GO's sim time
 #: (each starts its start delay then); GO asks for no answer, so no silence can end it earlier
 GO_WAIT = 0.5
+#: wall s the clock waits at most for an agent process's timers due at a step to fire (its
+#: ``/sim_timers`` report); then the process is left out until it reports again
+TIMER_WAIT = 0.5
 
 
 class WorldNode:
@@ -103,6 +108,7 @@ class WorldNode:
         self.hold_after = gwait + float(rospy.get_param("~reaction_time", REACTION_TIME))
         self.hold_limit = float(rospy.get_param("~reaction_wait", REACTION_WAIT))
         self.reaction = HoldCounter()
+        self.arrival = HoldCounter()        # waits for an agent's report on its arrival
         if self.hold_after < 0 or self.hold_limit < 0:
             raise ValueError("~reaction_time and ~reaction_wait must be >= 0")
         self.message_hold = MessageHold(float(rospy.get_param("~message_quiet", MESSAGE_QUIET)),
@@ -113,6 +119,13 @@ class WorldNode:
         # timer fires there and it acts (a new round, a goal)
         self.timers = AuctionTimers() if rospy.get_param("~auction_timers", True) else None
         self.go_hold = GoHold(len(positions), float(rospy.get_param("~go_wait", GO_WAIT)))
+        # hold the clock at a step where an agent process has a timer due until it reports
+        # that the timer fired (patrolling_sim.ros.sim_timers; the original's agents do not
+        # report, and the auction-timer rule above stands in for theirs)
+        self.timer_wait = float(rospy.get_param("~timer_wait", TIMER_WAIT))
+        if self.timer_wait < 0:
+            raise ValueError(f"~timer_wait must be >= 0, got {self.timer_wait}")
+        self.timer_reports = TimerReports() if self.timer_wait > 0 else None
         self.go_at = None
         self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=1)
         self.clock = Clock()
@@ -127,6 +140,13 @@ class WorldNode:
                       else None)
         self.results_sub = rospy.Subscriber("/results", Int16MultiArray, self._on_results,
                                             queue_size=100)
+        if self.timer_reports is not None:
+            from std_msgs.msg import Float64MultiArray
+            self.timers_sub = rospy.Subscriber("/sim_timers", Float64MultiArray,
+                                               self._on_timer_report, queue_size=100)
+            # our agents wait for this subscription before they announce themselves
+            # (patrolling_sim.ros.sim_timers.READER_PARAM), so no report is lost
+            rospy.set_param("/sim_timers_reader", True)
         for r in self.robots:
             r.server.start()
             # the action server's own 5 Hz status timer is a thread woken by every clock
@@ -173,6 +193,20 @@ class WorldNode:
         if go:
             self.rospy.loginfo("abstract_world: GO at sim %.2f s", self.go_at)
 
+    def _on_timer_report(self, msg):
+        """``[done, next]`` from an agent process's timer scheduler: recorded per sender,
+        and traffic (the timers' own messages went out before the report)."""
+        if len(msg.data) < 2:
+            return
+        sender = getattr(msg, "_connection_header", {}).get("callerid", "?")
+        robot = int(msg.data[2]) if len(msg.data) >= 4 else None
+        with self.lock:
+            # an event handled counts at the world's time of the report (the clock stands
+            # still while the world waits for it; the agent's own reading may lag a step)
+            self.timer_reports.note(sender, msg.data[0], msg.data[1], robot, self.world.time)
+            self.message_hold.note(time.monotonic())
+            self.traffic.notify_all()
+
     def run(self):
         """Step until shutdown; the summary is logged however the loop ends."""
         try:
@@ -214,6 +248,8 @@ class WorldNode:
             rospy.rostime._set_rostime(t)
             self.clock.clock = t
             self.clock_pub.publish(self.clock)
+            if self.timer_reports is not None and self._hold_for_timers():
+                self._hold_for_messages()      # their actions' messages, before arrivals
             if self.timers is not None:
                 with self.lock:
                     if self.timers.reached(self.world.time):
@@ -259,6 +295,31 @@ class WorldNode:
             self.go_hold.counter.wall += time.monotonic() - start
         return True
 
+    def _hold_for_timers(self):
+        """Stop the clock (just published) while an agent process has a timer due at this
+        step that has not fired (clock_hold.TimerReports), at most ``timer_wait`` wall s;
+        returns True if it held."""
+        reports = self.timer_reports
+        start = time.monotonic()
+        held = False
+        with self.lock:
+            while not self.rospy.is_shutdown():
+                waiting = reports.waiting(self.world.time)
+                if not waiting:
+                    break
+                if not held:
+                    held = True
+                    reports.counter.holds += 1
+                left = start + self.timer_wait - time.monotonic()
+                if left <= 0:
+                    reports.counter.timeouts += 1
+                    reports.give_up(waiting)
+                    break
+                self.traffic.wait(left)
+        if held:
+            reports.counter.wall += time.monotonic() - start
+        return held
+
     def _hold_for_reactions(self):
         """Stop the clock while a robot that arrived ``hold_after`` sim s ago has no new goal
         yet, for at most ``hold_limit`` wall s per arrival (after that the robot is taken to
@@ -293,9 +354,32 @@ class WorldNode:
                 gh.set_succeeded()
             with self.lock:
                 self.message_hold.note(time.monotonic())
-            if k + 1 < len(arrived) and self.message_hold.enabled:
+                reports = self.timer_reports is not None and self.timer_reports.reports(i)
+            if reports and gh is not None:
+                self._wait_for_handled(i)
+                self._hold_for_messages()
+            elif k + 1 < len(arrived) and self.message_hold.enabled:
                 self._wait_for_goal(self.robots[i])
                 self._hold_for_messages()
+
+    def _wait_for_handled(self, i):
+        """Wait (at most ``hold_limit`` wall s, an arrival hold) until robot ``i``'s agent
+        reports that it handled its arrival at this step (``/sim_timers``): everything it
+        does for the arrival then happens at this step's time, at any pace and load."""
+        if self.hold_limit <= 0:
+            return
+        start = time.monotonic()
+        c = self.arrival
+        with self.lock:
+            c.holds += 1
+            while not self.timer_reports.has_handled(i, self.world.time) \
+                    and not self.rospy.is_shutdown():
+                left = start + self.hold_limit - time.monotonic()
+                if left <= 0:
+                    c.timeouts += 1
+                    break
+                self.traffic.wait(left)
+        c.wall += time.monotonic() - start
 
     def _wait_for_goal(self, r):
         """Wait (at most ``hold_limit`` wall s, a reaction hold) until robot ``r`` has a
@@ -355,8 +439,15 @@ class WorldNode:
                     goals=[r.goals for r in self.robots],
                     succeeded=[r.succeeded for r in self.robots],
                     preempted=[r.preempted for r in self.robots],
-                    **totals({"go": self.go_hold.counter, "reaction": self.reaction,
-                              "message": self.message_hold.counter}))
+                    **totals(self._hold_counters()))
+
+    def _hold_counters(self):
+        c = {"go": self.go_hold.counter, "reaction": self.reaction,
+             "message": self.message_hold.counter}
+        if self.timer_reports is not None:
+            c["timer"] = self.timer_reports.counter
+            c["arrival"] = self.arrival
+        return c
 
     def log_summary(self):
         if self.trace is not None:
@@ -371,6 +462,12 @@ class WorldNode:
                 f"{self.message_hold.counter.timeouts} timed out after "
                 f"{self.message_hold.limit:g} wall s, {self.message_hold.counter.wall:.2f} wall "
                 f"s in all; for GO {self.go_hold.counter.wall:.2f} wall s")
+        if self.timer_reports is not None:
+            c = self.timer_reports.counter
+            line += (f"; for the agents' timers {c.holds} times, {c.timeouts} timed out after "
+                     f"{self.timer_wait:g} wall s, {c.wall:.2f} wall s in all; for arrivals "
+                     f"{self.arrival.holds} times, {self.arrival.timeouts} timed out after "
+                     f"{self.hold_limit:g} wall s, {self.arrival.wall:.2f} wall s in all")
         if turn:
             line += (f"; turnaround SUCCEEDED->next goal (sim s): n {len(turn)} mean "
                      f"{statistics.mean(turn):.3f} median {statistics.median(turn):.3f} "

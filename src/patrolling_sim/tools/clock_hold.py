@@ -265,3 +265,58 @@ class GoHold:
         if self.awaiting_go:
             self.counter.timeouts += 1
         return None
+
+
+#: s: a deadline counts as reached when the clock is at most this much short of it (the
+#: agents' scheduler uses the same tolerance, patrolling_sim.common.timer_heap)
+DEADLINE_TOLERANCE = 1e-6
+
+
+class TimerReports:
+    """The agents' reports (``/sim_timers`` per agent process;
+    patrolling_sim.ros.sim_timers): ``[done, next]``, its timers due up to sim time ``done``
+    have fired and ``next`` is its earliest pending deadline; ``[done, next, robot, t]``
+    also says that robot ``robot`` has handled an event (GO, a goal's outcome) at sim time
+    ``t``. :meth:`note` records a report (any thread, under the caller's lock); the
+    stepping thread asks :meth:`waiting` whether the clock at sim time ``sim`` must stand
+    still for a timer, and :meth:`has_handled` whether a robot's agent has handled its
+    arrival. A process whose timer wait reached its bound is left out (:meth:`give_up`)
+    until it reports again: an agent process that ended, or one too busy to answer, costs
+    one bounded wait, not one per step."""
+
+    def __init__(self):
+        self.next = {}              # reporter -> earliest pending deadline (sim s)
+        self.handled = {}           # robot -> latest sim time it reported an event handled
+        self.counter = HoldCounter()
+
+    def note(self, reporter, done, nxt, robot=None, at=None):
+        """A report of ``reporter`` (any hashable): its timers due up to sim time ``done``
+        have fired; ``nxt`` is its earliest pending deadline (< 0: none); ``robot``, if
+        given, has handled an event at sim time ``at``."""
+        if nxt < 0:
+            self.next.pop(reporter, None)
+        else:
+            self.next[reporter] = nxt
+        if robot is not None:
+            self.handled[robot] = max(self.handled.get(robot, at), at)
+
+    def waiting(self, sim):
+        """The reporters with a deadline at or before ``sim`` that has not fired yet (sorted
+        by deadline); empty if the clock may move on."""
+        due = [(d, r) for r, d in self.next.items() if d <= sim + DEADLINE_TOLERANCE]
+        return [r for _, r in sorted(due, key=lambda x: (x[0], str(x[1])))]
+
+    def give_up(self, reporters):
+        """Leave ``reporters`` out until their next report (their wait timed out)."""
+        for r in reporters:
+            self.next.pop(r, None)
+
+    def reports(self, robot):
+        """True if ``robot``'s agent reports the events it handled (it reported one)."""
+        return robot in self.handled
+
+    def has_handled(self, robot, sim):
+        """True if ``robot``'s agent reported an event handled at sim time ``sim`` or later
+        (or it does not report: nothing to wait for)."""
+        at = self.handled.get(robot)
+        return at is None or at >= sim - DEADLINE_TOLERANCE

@@ -29,6 +29,7 @@ from patrolling_sim.agent.core import Effects
 from patrolling_sim.agent.factory import build_agent
 from patrolling_sim.algorithms.base import MSG_FAILURE
 from patrolling_sim.common.errors import PatrolInputError
+from patrolling_sim.common.protocol import GO, MONITOR_ID, MSG_INIT
 from patrolling_sim.model.graph import PatrolGraph, load_graph
 from patrolling_sim.ros import sim_timers
 from patrolling_sim.ros.agent_scenario import AgentScenario
@@ -106,6 +107,7 @@ class PatrolAgent(Effects):
         self.server_name = rospy.resolve_name(f"{ns}/move_base")
         self.client = actionlib.ActionClient(self.server_name, MoveBaseAction)
         self.frame_tag = f"robot_{self.id}/map"
+        sim_timers.scheduler()    # made now: its report topic is connected before GO
         rospy.Subscriber("/results", Int16MultiArray, self._on_results, queue_size=100)
         rospy.Subscriber("/positions", Odometry, self._on_positions, queue_size=10)
 
@@ -223,6 +225,7 @@ class PatrolAgent(Effects):
             rospy.set_param("/algorithm_params", str(self.strategy.algorithm_params or ""))
         if not self.wait_for_server():
             return False
+        sim_timers.scheduler().wait_for_reader()
         rospy.loginfo("robot %d: move_base found; start vertex %d; announcing", self.id,
                       self.start_vertex)
         with self.lock:
@@ -248,6 +251,8 @@ class PatrolAgent(Effects):
             data = list(msg.data)
             self.scenario.on_results(data)
             self.core.on_results(data)
+        if len(data) > 2 and data[0] == MONITOR_ID and data[1] == MSG_INIT and data[2] == GO:
+            sim_timers.scheduler().handled(self.id)   # the world learns this robot reports
 
     def _on_positions(self, msg):
         k = parse_robot_frame(msg.header.frame_id)
@@ -281,15 +286,20 @@ class PatrolAgent(Effects):
                 rospy.logerr("robot %d: error handling a goal outcome: %s", self.id, e)
 
     def _on_outcome(self, gh, seq, status):
-        with self.lock:
-            if seq != self.core.seq:
-                return
-            if gh == self.gh:        # actionlib passes a new handle each time: not `is`
-                self.gh = None
-            if status != GoalStatus.SUCCEEDED:
-                rospy.logwarn("robot %d: goal to vertex %s failed (status %d)", self.id,
-                              self.core.target, status)
-            self.core.on_goal_result(seq, status == GoalStatus.SUCCEEDED)
+        """A goal's outcome to the core; then (stale or not) the report that this robot
+        handled it (``sim_timers``: the world may hold its clock until then)."""
+        try:
+            with self.lock:
+                if seq != self.core.seq:
+                    return
+                if gh == self.gh:        # actionlib passes a new handle each time: not `is`
+                    self.gh = None
+                if status != GoalStatus.SUCCEEDED:
+                    rospy.logwarn("robot %d: goal to vertex %s failed (status %d)", self.id,
+                                  self.core.target, status)
+                self.core.on_goal_result(seq, status == GoalStatus.SUCCEEDED)
+        finally:
+            sim_timers.scheduler().handled(self.id)
 
     def _on_feedback(self, fb, seq):
         if rospy.core.is_shutdown_requested():

@@ -11,12 +11,36 @@ order of their deadlines, then of their creation.
 
 The thread waits on rospy's clock condition (notified by every ``/clock`` message) under
 simulated time, and for the wall time left to the next deadline under wall-clock time.
+
+Under simulated time the scheduler also tells the world where its timers are
+(:data:`REPORT_TOPIC`, ``std_msgs/Float64MultiArray``, ``[done, next]``): ``done`` is the
+clock reading through which every due timer has fired (its callbacks have returned), ``next``
+the earliest pending deadline (-1 if none). It reports when a new timer becomes the earliest
+and after it fired the timers due at a clock reading. :meth:`TimerScheduler.handled` adds
+``[done, next, robot, t]``: robot ``robot``'s agent has handled an event (GO, a goal's
+outcome) at clock reading ``t``, everything it sent for it already published. A world that
+reads these reports (the abstract world, docs/abstract_world.md, "Agents' reports") keeps
+its clock at the first step at or after ``next`` until the report that those timers fired,
+and at a robot's arrival until its agent has handled it, so that a timer's or an arrival's
+action goes out at the same simulated step at any pace and load. Nothing in the topic API
+the original's agents use changes; a world that does not read the reports loses nothing.
 """
 import threading
+import time
 
 import rospy
+from std_msgs.msg import Float64MultiArray
 
-from patrolling_sim.common.timer_heap import TimerHeap
+from patrolling_sim.common.timer_heap import TOLERANCE, TimerHeap
+
+#: where the scheduler reports ``[done, next]`` (see the module's docstring)
+REPORT_TOPIC = "/sim_timers"
+#: ``next`` when no timer is pending
+NO_DEADLINE = -1.0
+#: the global parameter a world that reads the reports sets to true
+READER_PARAM = "/sim_timers_reader"
+#: wall s an agent waits at most for the reader's connection (see wait_for_reader)
+READER_WAIT = 5.0
 
 #: wall s the thread waits at most between two looks at the clock and the heap
 POLL = 0.5
@@ -27,10 +51,38 @@ MIN_DELAY = 1e-3
 class TimerScheduler:
     """Fires one-shot callbacks at absolute ROS times, from one daemon thread."""
 
-    def __init__(self):
+    def __init__(self, report=True):
         self._heap = TimerHeap()
         self._cond = rospy.rostime.get_rostime_cond()
         self._thread = None
+        self._pub = (rospy.Publisher(REPORT_TOPIC, Float64MultiArray, queue_size=100)
+                     if report else None)
+        self._done = NO_DEADLINE        # clock reading through which due timers have fired
+        self._reported = None           # the last ``next`` reported
+        self._closed = False
+
+    def wait_for_reader(self, timeout=READER_WAIT):
+        """If a world reads the reports (:data:`READER_PARAM`), wait until it is connected
+        (at most ``timeout`` wall s): a report sent before is lost, and a timer the world
+        does not know of may fire steps late. Returns True if connected (or no reader)."""
+        if self._pub is None or not rospy.get_param(READER_PARAM, False):
+            return True
+        end = time.monotonic() + timeout
+        while self._pub.get_num_connections() == 0:
+            if time.monotonic() >= end or rospy.core.is_shutdown_requested():
+                rospy.logwarn("no connection to the world's %s reader after %g s; its clock "
+                              "will not wait for this process's timers", REPORT_TOPIC,
+                              timeout)
+                return False
+            time.sleep(0.01)
+        return True
+
+    def close(self):
+        """End the scheduler's thread (pending timers never fire); the node's shutdown ends
+        it too."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
 
     def call_at(self, deadline, fn):
         """Run ``fn()`` (in the scheduler's thread; it takes its own locks) once ROS time
@@ -41,15 +93,43 @@ class TimerScheduler:
                 self._thread = threading.Thread(target=self._run, name="sim_timers",
                                                 daemon=True)
                 self._thread.start()
+            if self._reported is None or t.deadline < self._reported:
+                self._report()
             self._cond.notify_all()
         return t
+
+    def handled(self, robot_id):
+        """Report that robot ``robot_id``'s agent has handled an event (GO, a goal's outcome)
+        at the current clock reading: what it sent for it is already published. Call it
+        after the handler, outside the agent's lock."""
+        with self._cond:
+            self._report([float(robot_id), rospy.get_time()])
+
+    def _report(self, extra=()):
+        """Publish ``[done, next, *extra]`` (under ``self._cond``; under wall-clock time
+        there is no world to tell, and nothing is sent)."""
+        nxt = self._heap.next_deadline()
+        self._reported = nxt
+        if self._pub is None or rospy.rostime.is_wallclock():
+            return
+        try:
+            self._pub.publish(Float64MultiArray(
+                data=[self._done, NO_DEADLINE if nxt is None else nxt, *extra]))
+        except rospy.ROSException:
+            if not rospy.core.is_shutdown_requested():    # a closed topic while stopping
+                raise
 
     def _run(self):
         while not rospy.core.is_shutdown():
             with self._cond:
+                if self._closed:
+                    return
                 now = rospy.get_time()
                 due = self._heap.pop_due(now)
                 if not due:
+                    if self._reported is not None and self._reported <= now + TOLERANCE:
+                        self._done = max(self._done, now)     # it was cancelled meanwhile
+                        self._report()
                     nxt = self._heap.next_deadline()
                     wait = POLL
                     if nxt is not None and rospy.rostime.is_wallclock():
@@ -63,6 +143,9 @@ class TimerScheduler:
                     t.fn()
                 except Exception as e:    # a failing callback must not stop the others
                     rospy.logerr("timer callback failed: %s", e)
+            with self._cond:
+                self._done = max(self._done, now)
+                self._report()
 
 
 _scheduler = None
