@@ -38,7 +38,9 @@ Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup
 ~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.2 wall s; 0 = never hold),
 ~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off),
 ~auction_timers (true: hold where a DTA auction may end), ~timer_wait (0.5 wall s the clock
-waits at most at a step where an agent process reported a timer due; 0 off), ~go_wait (0.5
+waits at most at a step where an agent process reported a timer due; 0 off), ~arrival_wait
+(1.0 wall s the clock waits at most for an agent's report that it handled an arrival; 0
+off), ~go_wait (0.5
 wall s the clock stands still after GO, and from the last robot's ready announcement until
 GO; 0 off).
 
@@ -77,6 +79,8 @@ GO_WAIT = 0.5
 #: wall s the clock waits at most for an agent process's timers due at a step to fire (its
 #: ``/sim_timers`` report); then the process is left out until it reports again
 TIMER_WAIT = 0.5
+#: wall s the clock waits at most for an agent's report that it handled its robot's arrival
+ARRIVAL_WAIT = 1.0
 
 
 class WorldNode:
@@ -126,6 +130,9 @@ class WorldNode:
         if self.timer_wait < 0:
             raise ValueError(f"~timer_wait must be >= 0, got {self.timer_wait}")
         self.timer_reports = TimerReports() if self.timer_wait > 0 else None
+        self.arrival_wait = float(rospy.get_param("~arrival_wait", ARRIVAL_WAIT))
+        if self.arrival_wait < 0:
+            raise ValueError(f"~arrival_wait must be >= 0, got {self.arrival_wait}")
         self.go_at = None
         self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=1)
         self.clock = Clock()
@@ -363,23 +370,26 @@ class WorldNode:
                 self._hold_for_messages()
 
     def _wait_for_handled(self, i):
-        """Wait (at most ``hold_limit`` wall s, an arrival hold) until robot ``i``'s agent
+        """Wait (at most ``arrival_wait`` wall s, an arrival hold) until robot ``i``'s agent
         reports that it handled its arrival at this step (``/sim_timers``): everything it
-        does for the arrival then happens at this step's time, at any pace and load."""
-        if self.hold_limit <= 0:
-            return
+        does for the arrival then happens at this step's time, at any pace and load.
+        Returns True if the report came."""
+        if self.arrival_wait <= 0:
+            return False
         start = time.monotonic()
         c = self.arrival
+        handled = False
         with self.lock:
             c.holds += 1
-            while not self.timer_reports.has_handled(i, self.world.time) \
-                    and not self.rospy.is_shutdown():
-                left = start + self.hold_limit - time.monotonic()
-                if left <= 0:
-                    c.timeouts += 1
+            while not self.rospy.is_shutdown():
+                handled = self.timer_reports.has_handled(i, self.world.time)
+                left = start + self.arrival_wait - time.monotonic()
+                if handled or left <= 0:
+                    c.timeouts += not handled
                     break
                 self.traffic.wait(left)
         c.wall += time.monotonic() - start
+        return handled
 
     def _wait_for_goal(self, r):
         """Wait (at most ``hold_limit`` wall s, a reaction hold) until robot ``r`` has a
@@ -467,7 +477,7 @@ class WorldNode:
             line += (f"; for the agents' timers {c.holds} times, {c.timeouts} timed out after "
                      f"{self.timer_wait:g} wall s, {c.wall:.2f} wall s in all; for arrivals "
                      f"{self.arrival.holds} times, {self.arrival.timeouts} timed out after "
-                     f"{self.hold_limit:g} wall s, {self.arrival.wall:.2f} wall s in all")
+                     f"{self.arrival_wait:g} wall s, {self.arrival.wall:.2f} wall s in all")
         if turn:
             line += (f"; turnaround SUCCEEDED->next goal (sim s): n {len(turn)} mean "
                      f"{statistics.mean(turn):.3f} median {statistics.median(turn):.3f} "

@@ -247,7 +247,7 @@ class PatrolAgent(Effects):
 
     # -- ROS callbacks -> core ---------------------------------------------------------------
     def _on_results(self, msg):
-        with self.lock:
+        with sim_timers.batch_lock, self.lock:     # never amid a batch of due timers
             data = list(msg.data)
             self.scenario.on_results(data)
             self.core.on_results(data)

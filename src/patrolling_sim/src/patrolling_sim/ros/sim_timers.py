@@ -41,6 +41,12 @@ NO_DEADLINE = -1.0
 READER_PARAM = "/sim_timers_reader"
 #: wall s an agent waits at most for the reader's connection (see wait_for_reader)
 READER_WAIT = 5.0
+#: held while the timers due at one clock reading fire. The ROS glue takes it before it
+#: hands a ``/results`` message to an agent, so a message reaches an agent before or after
+#: such a batch, never between two of its timers: with several agents in one process whose
+#: timers are due at the same step (robots that arrived together on grid), which agent's
+#: timer saw the other's message would otherwise depend on thread scheduling.
+batch_lock = threading.Lock()
 
 #: wall s the thread waits at most between two looks at the clock and the heap
 POLL = 0.5
@@ -136,13 +142,14 @@ class TimerScheduler:
                         wait = min(POLL, max(0.0, nxt - now))
                     self._cond.wait(wait)
                     continue
-            for t in due:                 # outside the condition: callbacks take locks
-                if t.cancelled or rospy.core.is_shutdown_requested():
-                    continue
-                try:
-                    t.fn()
-                except Exception as e:    # a failing callback must not stop the others
-                    rospy.logerr("timer callback failed: %s", e)
+            with batch_lock:              # outside the condition: callbacks take locks
+                for t in due:
+                    if t.cancelled or rospy.core.is_shutdown_requested():
+                        continue
+                    try:
+                        t.fn()
+                    except Exception as e:    # a failing callback must not stop the others
+                        rospy.logerr("timer callback failed: %s", e)
             with self._cond:
                 self._done = max(self._done, now)
                 self._report()
