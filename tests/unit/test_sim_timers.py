@@ -104,3 +104,21 @@ def test_no_report_under_wall_clock():
     finally:
         s.close()
         rt._rostime_initialized, rt._rostime_current = saved
+
+
+def test_delivery_waits_until_every_local_agent_read_every_local_message():
+    d = sim_timers.Delivery()
+    d.add_agent(0)
+    d.add_agent(1)
+    assert d.wait(0.01)                     # nothing sent: nothing to wait for
+    d.sent()                                # robot 0 publishes
+    d.sent()                                # robot 1 publishes
+    d.received(0, -1)                       # the monitor's message: not counted
+    d.received(0, 0)
+    d.received(0, 1)
+    d.received(1, 0)
+    assert not d.wait(0.01)                 # robot 1 has not read robot 1's message yet
+    threading.Timer(0.05, d.received, (1, 1)).start()
+    assert d.wait(5.0)                      # ... and then it has
+    d.received(1, 7)                        # a robot of another process: not counted
+    assert d.wait(0.01)

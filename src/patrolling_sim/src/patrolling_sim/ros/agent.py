@@ -108,6 +108,7 @@ class PatrolAgent(Effects):
         self.client = actionlib.ActionClient(self.server_name, MoveBaseAction)
         self.frame_tag = f"robot_{self.id}/map"
         sim_timers.scheduler()    # made now: its report topic is connected before GO
+        sim_timers.delivery.add_agent(self.id)
         rospy.Subscriber("/results", Int16MultiArray, self._on_results, queue_size=100)
         rospy.Subscriber("/positions", Odometry, self._on_positions, queue_size=10)
 
@@ -148,6 +149,7 @@ class PatrolAgent(Effects):
         if not self.scenario.may_publish() and (len(data) < 2 or data[1] != MSG_FAILURE):
             return                      # a failed robot is silent (its pending timers too)
         data, clamped = clamp_int16(data)
+        sim_timers.delivery.sent()
         if clamped and not self.clamp_warned:
             self.clamp_warned = True
             rospy.logwarn("robot %d: /results payload clamped to int16 (type %s)", self.id,
@@ -251,8 +253,12 @@ class PatrolAgent(Effects):
             data = list(msg.data)
             self.scenario.on_results(data)
             self.core.on_results(data)
+        if data:
+            sim_timers.delivery.received(self.id, data[0])
         if len(data) > 2 and data[0] == MONITOR_ID and data[1] == MSG_INIT and data[2] == GO:
-            sim_timers.scheduler().handled(self.id)   # the world learns this robot reports
+            # the world learns that this robot reports (no delivery wait: this thread
+            # delivers /results)
+            sim_timers.scheduler().handled(self.id, wait=False)
 
     def _on_positions(self, msg):
         k = parse_robot_frame(msg.header.frame_id)

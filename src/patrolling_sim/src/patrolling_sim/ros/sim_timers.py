@@ -47,6 +47,51 @@ READER_WAIT = 5.0
 #: timers are due at the same step (robots that arrived together on grid), which agent's
 #: timer saw the other's message would otherwise depend on thread scheduling.
 batch_lock = threading.Lock()
+#: wall s a report waits at most for the process's own messages to come back (Delivery)
+DELIVERY_WAIT = 0.5
+
+
+class Delivery:
+    """The ``/results`` messages this process's agents sent, and how many of them each of
+    its agents has received back (a message reaches every agent of the process, its sender
+    included, through the process's own subscription). A report waits until every agent
+    has received every message sent before it (:meth:`wait`), so that "handled" also means
+    "its teammates in this process have read what it sent": the world's quiet window alone
+    cannot tell when a loaded process has delivered a message to itself."""
+
+    def __init__(self):
+        self._cond = threading.Condition()
+        self._sent = 0
+        self._received = {}         # local agent id -> local messages received
+
+    def add_agent(self, agent_id):
+        """Agent ``agent_id`` lives in this process (before any message is sent)."""
+        with self._cond:
+            self._received[int(agent_id)] = self._sent
+
+    def sent(self):
+        """One message is about to be published by an agent of this process."""
+        with self._cond:
+            self._sent += 1
+
+    def received(self, agent_id, sender):
+        """Agent ``agent_id`` has handled a message of robot ``sender``."""
+        with self._cond:
+            if sender in self._received and agent_id in self._received:
+                self._received[agent_id] += 1
+                self._cond.notify_all()
+
+    def wait(self, timeout=DELIVERY_WAIT):
+        """Wait until every local agent has received every local message sent so far (at
+        most ``timeout`` wall s: a lost message, a stopping node). True if they have."""
+        with self._cond:
+            target = self._sent
+            return self._cond.wait_for(
+                lambda: all(n >= target for n in self._received.values()), timeout)
+
+
+#: the process's bookkeeping of its own messages
+delivery = Delivery()
 
 #: wall s the thread waits at most between two looks at the clock and the heap
 POLL = 0.5
@@ -104,10 +149,14 @@ class TimerScheduler:
             self._cond.notify_all()
         return t
 
-    def handled(self, robot_id):
+    def handled(self, robot_id, wait=True):
         """Report that robot ``robot_id``'s agent has handled an event (GO, a goal's outcome)
         at the current clock reading: what it sent for it is already published. Call it
-        after the handler, outside the agent's lock."""
+        after the handler, outside the agent's lock. With ``wait`` it first waits until the
+        agents of this process have received what the agents sent (:class:`Delivery`);
+        never wait in the thread that delivers ``/results`` (it would wait for itself)."""
+        if wait:
+            delivery.wait()
         with self._cond:
             self._report([float(robot_id), rospy.get_time()])
 
@@ -150,6 +199,7 @@ class TimerScheduler:
                         t.fn()
                     except Exception as e:    # a failing callback must not stop the others
                         rospy.logerr("timer callback failed: %s", e)
+            delivery.wait()                   # what the timers sent, read in this process
             with self._cond:
                 self._done = max(self._done, now)
                 self._report()
