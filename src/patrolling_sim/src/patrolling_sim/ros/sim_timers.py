@@ -111,6 +111,7 @@ class TimerScheduler:
         self._done = NO_DEADLINE        # clock reading through which due timers have fired
         self._reported = None           # the last ``next`` reported
         self._closed = False
+        self._reader = False            # a world reads the reports (wait_for_reader)
 
     def wait_for_reader(self, timeout=READER_WAIT):
         """If a world reads the reports (:data:`READER_PARAM`), wait until it is connected
@@ -118,6 +119,7 @@ class TimerScheduler:
         does not know of may fire steps late. Returns True if connected (or no reader)."""
         if self._pub is None or not rospy.get_param(READER_PARAM, False):
             return True
+        self._reader = True
         end = time.monotonic() + timeout
         while self._pub.get_num_connections() == 0:
             if time.monotonic() >= end or rospy.core.is_shutdown_requested():
@@ -153,9 +155,10 @@ class TimerScheduler:
         """Report that robot ``robot_id``'s agent has handled an event (GO, a goal's outcome)
         at the current clock reading: what it sent for it is already published. Call it
         after the handler, outside the agent's lock. With ``wait`` it first waits until the
-        agents of this process have received what the agents sent (:class:`Delivery`);
-        never wait in the thread that delivers ``/results`` (it would wait for itself)."""
-        if wait:
+        agents of this process have received what the agents sent (:class:`Delivery`; only
+        if a world reads the reports); never wait in the thread that delivers ``/results``
+        (it would wait for itself)."""
+        if wait and self._reader:
             delivery.wait()
         with self._cond:
             self._report([float(robot_id), rospy.get_time()])
@@ -199,7 +202,8 @@ class TimerScheduler:
                         t.fn()
                     except Exception as e:    # a failing callback must not stop the others
                         rospy.logerr("timer callback failed: %s", e)
-            delivery.wait()                   # what the timers sent, read in this process
+            if self._reader:
+                delivery.wait()               # what the timers sent, read in this process
             with self._cond:
                 self._done = max(self._done, now)
                 self._report()
