@@ -256,9 +256,7 @@ class PatrolAgent(Effects):
         if data:
             sim_timers.delivery.received(self.id, data[0])
         if len(data) > 2 and data[0] == MONITOR_ID and data[1] == MSG_INIT and data[2] == GO:
-            # the world learns that this robot reports (no delivery wait: this thread
-            # delivers /results)
-            sim_timers.scheduler().handled(self.id, wait=False)
+            sim_timers.scheduler().handled(self.id, wait=False)   # this thread delivers
 
     def _on_positions(self, msg):
         k = parse_robot_frame(msg.header.frame_id)
@@ -292,8 +290,7 @@ class PatrolAgent(Effects):
                 rospy.logerr("robot %d: error handling a goal outcome: %s", self.id, e)
 
     def _on_outcome(self, gh, seq, status):
-        """A goal's outcome to the core; then (stale or not) the report that this robot
-        handled it (``sim_timers``: the world may hold its clock until then)."""
+        """A goal's outcome to the core, then (stale or not) the report ``sim_timers``."""
         try:
             with self.lock:
                 if seq != self.core.seq:
