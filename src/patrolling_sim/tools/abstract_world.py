@@ -40,9 +40,8 @@ Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup
 ~auction_timers (true: hold where a DTA auction may end), ~timer_wait (0.5 wall s the clock
 waits at most at a step where an agent process reported a timer due; 0 off), ~arrival_wait
 (1.0 wall s the clock waits at most for an agent's report that it handled an arrival; 0
-off), ~go_wait (0.5
-wall s the clock stands still after GO, and from the last robot's ready announcement until
-GO; 0 off).
+off), ~go_wait (0.5 wall s the clock stands still after GO, and from the last robot's ready
+announcement until GO; 0 off).
 
 Diagnostic: with ``PATROLLING_SIM_TRACE_AUCTIONS=1`` in its environment the node logs at
 shutdown the sim and wall s from each DTA task request (type 41) to each bid (type 42).

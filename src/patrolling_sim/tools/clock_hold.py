@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 from patrolling_sim.common.protocol import (GO, MONITOR_ID, MSG_INIT, MSG_SSI_BID,
                                             MSG_SSI_TASK_REQUEST, ROBOT_READY)
+# a deadline counts as reached within the agents' scheduler's own tolerance
+from patrolling_sim.common.timer_heap import TOLERANCE as DEADLINE_TOLERANCE
 
 
 @dataclass
@@ -265,11 +267,6 @@ class GoHold:
         if self.awaiting_go:
             self.counter.timeouts += 1
         return None
-
-
-#: s: a deadline counts as reached when the clock is at most this much short of it (the
-#: agents' scheduler uses the same tolerance, patrolling_sim.common.timer_heap)
-DEADLINE_TOLERANCE = 1e-6
 
 
 class TimerReports:

@@ -7,6 +7,7 @@ import time
 from straight_line_world import EPS
 from clock_hold import (AuctionTimers, GoHold, HoldCounter, MessageHold, TimerReports,
                         reaction_deadline)
+from patrolling_sim.ros.sim_timers import READER_PARAM, REPORT_TOPIC
 
 #: sim s from an arrival (plus /goal_reached_wait) to the next departure at the earliest, and
 #: then the clock waits for the goal: the reference runs' median turnaround (4 steps of 20 ms)
@@ -64,15 +65,15 @@ class WorldHolds:
             raise ValueError(f"~arrival_wait must be >= 0, got {self.arrival_wait}")
 
     def _subscribe_reports(self, rospy):
-        """Read the agents' reports (``/sim_timers``) if the timer hold is on, and tell
-        the agents so (``/sim_timers_reader``: they wait for this subscription before they
-        announce themselves, so no report is lost)."""
+        """Read the agents' reports (REPORT_TOPIC) if the timer hold is on, and tell the
+        agents so (READER_PARAM: they wait for this subscription before they announce
+        themselves, so no report is lost)."""
         if self.timer_reports is None:
             return
         from std_msgs.msg import Float64MultiArray
-        self.timers_sub = rospy.Subscriber("/sim_timers", Float64MultiArray,
+        self.timers_sub = rospy.Subscriber(REPORT_TOPIC, Float64MultiArray,
                                            self._on_timer_report, queue_size=100)
-        rospy.set_param("/sim_timers_reader", True)
+        rospy.set_param(READER_PARAM, True)
 
     def _on_timer_report(self, msg):
         """``[done, next]`` from an agent process's timer scheduler: recorded per sender,
@@ -173,13 +174,11 @@ class WorldHolds:
     def _wait_for_handled(self, i):
         """Wait (at most ``arrival_wait`` wall s, an arrival hold) until robot ``i``'s agent
         reports that it handled its arrival at this step (``/sim_timers``): everything it
-        does for the arrival then happens at this step's time, at any pace and load.
-        Returns True if the report came."""
+        does for the arrival then happens at this step's time, at any pace and load."""
         if self.arrival_wait <= 0:
-            return False
+            return
         start = time.monotonic()
         c = self.arrival
-        handled = False
         with self.lock:
             c.holds += 1
             while not self.rospy.is_shutdown():
@@ -190,7 +189,6 @@ class WorldHolds:
                     break
                 self.traffic.wait(left)
         c.wall += time.monotonic() - start
-        return handled
 
     def _wait_for_goal(self, r):
         """Wait (at most ``hold_limit`` wall s, a reaction hold) until robot ``r`` has a
