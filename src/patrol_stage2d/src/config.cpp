@@ -170,6 +170,7 @@ SimConfig read_config(const ParamReader& p) {
   c.reaction_wait = p.positive("reaction_wait", 0.5, true);
   c.result_wait = p.positive("result_wait", 0.02, true);
   c.go_wait = p.positive("go_wait", 0.5, true);
+  c.timer_wait = p.positive("timer_wait", 0.5, true);
   // default: physics sub-steps of at most 10 ms
   c.substeps = p.get<int>("physics_substeps", std::max(1, static_cast<int>(std::ceil(c.step / 0.01 - 1e-9))));
   if (c.substeps < 1) throw InputError("parameter ~physics_substeps must be >= 1");

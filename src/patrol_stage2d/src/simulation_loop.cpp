@@ -15,6 +15,10 @@ namespace patrol_stage2d {
 
 namespace {
 const double kGoAnnounceWait = 2.0;  // wall s the clock waits at most for GO once every robot is ready
+// the agents' timer reports and the parameter a world that reads them sets
+// (patrolling_sim.ros.sim_timers: REPORT_TOPIC, READER_PARAM)
+const char* const kTimerReports = "/sim_timers";
+const char* const kTimerReader = "/sim_timers_reader";
 }
 
 void SimulationLoop::setup() {
@@ -39,6 +43,13 @@ void SimulationLoop::setup() {
   status_pub_ = pnh_.advertise<std_msgs::String>("status", 10, true);
   go_.reset(new GoHold(world_.robots().size(), cfg_.go_wait, kGoAnnounceWait));
   if (go_->enabled()) results_sub_ = nh_.subscribe("/results", 100, &SimulationLoop::on_results, this);
+  timers_.reset(new TimerHold(cfg_.timer_wait));
+  if (timers_->enabled()) {
+    // this project's agents wait for this subscription before they announce themselves
+    // when the parameter is set, so that no report is lost (patrolling_sim.ros.sim_timers)
+    timers_sub_ = nh_.subscribe(kTimerReports, 100, &SimulationLoop::on_timer_report, this);
+    nh_.setParam(kTimerReader, true);
+  }
   renderer_.reset(new Renderer(cfg_, world_.map(), world_.robots(), *laser_));
   services_.reset(new Services(nh_, pnh_, &world_, cfg_.drive.radius, renderer_.get(), clock_.get()));
   const LaserConfig& l = cfg_.laser;
@@ -106,11 +117,12 @@ bool SimulationLoop::wait_for_commands() {
   }
   bool sync = cfg_.sync_timeout > 0 && pending();
   bool held = hold_->holding(clock_->now(), wall(start));
-  if (!sync && !held) return go_held;
-  bool ever_held = held || go_held;
+  bool timer_held = timers_->holding(clock_->now(), wall(start));
+  if (!sync && !held && !timer_held) return go_held;
+  bool ever_held = held || timer_held || go_held;
   if (sync) ++sync_waits_;
   auto deadline = start + std::chrono::duration_cast<Steady::duration>(std::chrono::duration<double>(cfg_.sync_timeout));
-  auto held_from = start;
+  auto held_from = start, timer_from = start;
   while (ros::ok()) {
     ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
     auto now = Steady::now();
@@ -120,15 +132,23 @@ bool SimulationLoop::wait_for_commands() {
     } else if (sync) {
       sync = pending();
     }
-    bool was_held = held;
+    bool was_held = held, was_timer_held = timer_held;
     held = hold_->holding(clock_->now(), wall(now));
+    timer_held = timers_->holding(clock_->now(), wall(now));
     if (was_held && !held) held_wall_ += std::chrono::duration<double>(now - held_from).count();
     if (!was_held && held) held_from = now;
-    ever_held = ever_held || held;
-    if (!sync && !held) break;
+    if (was_timer_held && !timer_held) timer_wall_ += std::chrono::duration<double>(now - timer_from).count();
+    if (!was_timer_held && timer_held) timer_from = now;
+    ever_held = ever_held || held || timer_held;
+    if (!sync && !held && !timer_held) break;
   }
   wait_wall_ += std::chrono::duration<double>(Steady::now() - start).count();
   return ever_held;
+}
+
+void SimulationLoop::on_timer_report(const ros::MessageEvent<const std_msgs::Float64MultiArray>& event) {
+  const std::vector<double>& d = event.getMessage()->data;
+  if (d.size() >= 2) timers_->on_report(event.getPublisherName(), d[1]);
 }
 
 void SimulationLoop::on_results(const std_msgs::Int16MultiArray::ConstPtr& msg) {
@@ -163,13 +183,17 @@ void SimulationLoop::publish_status(double rtf) {
   js << "], \"wall_contacts\": " << world_.contacts().wall << ", \"robot_contacts\": " << world_.contacts().robot
      << ", \"stale_command_fraction\": " << fmt("%.4f", stale_command_fraction())
      << ", \"sync_waits\": " << sync_waits_ << ", \"sync_timeouts\": " << sync_timeouts_
-     << ", \"clock_holds\": " << sync_waits_ + hold_->holds() + hold_->stop_waits() + go_holds_
-     << ", \"hold_timeouts\": " << sync_timeouts_ + hold_->timeouts() + hold_->stop_timeouts() + go_->timeouts()
+     << ", \"clock_holds\": " << sync_waits_ + hold_->holds() + hold_->stop_waits() + timers_->holds() + go_holds_
+     << ", \"hold_timeouts\": "
+     << sync_timeouts_ + hold_->timeouts() + hold_->stop_timeouts() + timers_->timeouts() + go_->timeouts()
      << ", \"held_wall\": " << fmt("%.3f", wait_wall_ + go_wall_)
      << ", \"hold_reasons\": {\"commands\": {\"holds\": " << sync_waits_ << ", \"timeouts\": " << sync_timeouts_
-     << ", \"wall\": " << fmt("%.3f", wait_wall_ - held_wall_) << "}, \"reaction\": {\"holds\": " << hold_->holds()
+     << ", \"wall\": " << fmt("%.3f", std::max(0.0, wait_wall_ - held_wall_ - timer_wall_))
+     << "}, \"reaction\": {\"holds\": " << hold_->holds()
      << ", \"timeouts\": " << hold_->timeouts() << ", \"wall\": " << fmt("%.3f", held_wall_)
      << "}, \"result\": {\"holds\": " << hold_->stop_waits() << ", \"timeouts\": " << hold_->stop_timeouts()
+     << "}, \"timer\": {\"holds\": " << timers_->holds() << ", \"timeouts\": " << timers_->timeouts()
+     << ", \"wall\": " << fmt("%.3f", timer_wall_)
      << "}, \"go\": {\"holds\": " << go_holds_ << ", \"timeouts\": " << go_->timeouts()
      << ", \"wall\": " << fmt("%.3f", go_wall_) << "}}}";
   std_msgs::String m;

@@ -50,6 +50,7 @@ struct SimConfig {
   double reaction_wait = 0.5;  // wall seconds the clock waits at most per reaction (0 = never)
   double result_wait = 0.02;   // wall seconds the clock waits for a result after a driven robot's stop
   double go_wait = 0.5;        // wall seconds the clock stands still once GO is seen on /results (0 = never)
+  double timer_wait = 0.5;     // wall seconds the clock waits at most for an agent process's due timers (0 = never)
   int seed = 0;
   std::vector<double> odom_error{0.01, 0.01, 0.0, 0.1};
   bool scan_always = false;    // benchmarking: compute scans without subscribers
