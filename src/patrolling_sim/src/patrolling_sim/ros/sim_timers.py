@@ -19,10 +19,11 @@ the earliest pending deadline (-1 if none). It reports when a new timer becomes 
 and after it fired the timers due at a clock reading. :meth:`TimerScheduler.handled` adds
 ``[done, next, robot, t]``: robot ``robot``'s agent has handled an event (GO, a goal's
 outcome) at clock reading ``t``, everything it sent for it already published. A world that
-reads these reports (the abstract world, docs/abstract_world.md, "Agents' reports") keeps
-its clock at the first step at or after ``next`` until the report that those timers fired,
-and at a robot's arrival until its agent has handled it, so that a timer's or an arrival's
-action goes out at the same simulated step at any pace and load. Nothing in the topic API
+reads these reports keeps its clock at the first step at or after ``next`` until the report
+that those timers fired (the abstract world, docs/abstract_world.md, "Agents' reports"; the
+simulator ``patrol_stage2d``, its timer hold), and the abstract world also at a robot's
+arrival until its agent has handled it, so that a timer's or an arrival's action goes out
+at the same simulated step at any pace and load. Nothing in the topic API
 the original's agents use changes; a world that does not read the reports loses nothing.
 """
 import threading
