@@ -19,6 +19,25 @@ const double kGoAnnounceWait = 2.0;  // wall s the clock waits at most for GO on
 // (patrolling_sim.ros.sim_timers: REPORT_TOPIC, READER_PARAM)
 const char* const kTimerReports = "/sim_timers";
 const char* const kTimerReader = "/sim_timers_reader";
+
+using Steady = std::chrono::steady_clock;
+
+// Adds to `*total` the wall s of each span in which a hold lasted, from the hold's state at
+// each look (`update`).
+class HeldSpans {
+ public:
+  HeldSpans(bool on, Steady::time_point now, double* total) : on_(on), from_(now), total_(total) {}
+  void update(bool on, Steady::time_point now) {
+    if (on_ && !on) *total_ += std::chrono::duration<double>(now - from_).count();
+    if (!on_ && on) from_ = now;
+    on_ = on;
+  }
+
+ private:
+  bool on_;
+  Steady::time_point from_;
+  double* total_;
+};
 }
 
 void SimulationLoop::setup() {
@@ -91,7 +110,6 @@ bool SimulationLoop::wait_for_commands() {
   // its goal ended (a result came: the controller sends nothing more until the next goal).
   // The reaction hold (reaction_hold.h) waits for those: a robot whose goal ended until its
   // next goal's first command, each with its own bound.
-  using Steady = std::chrono::steady_clock;
   auto pending = [this]() {
     const double now = clock_->now(), step = cfg_.step;
     for (const Robot& r : world_.robots()) {
@@ -122,7 +140,7 @@ bool SimulationLoop::wait_for_commands() {
   bool ever_held = held || timer_held || go_held;
   if (sync) ++sync_waits_;
   auto deadline = start + std::chrono::duration_cast<Steady::duration>(std::chrono::duration<double>(cfg_.sync_timeout));
-  auto held_from = start, timer_from = start;
+  HeldSpans reaction_spans(held, start, &held_wall_), timer_spans(timer_held, start, &timer_wall_);
   while (ros::ok()) {
     ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
     auto now = Steady::now();
@@ -132,13 +150,10 @@ bool SimulationLoop::wait_for_commands() {
     } else if (sync) {
       sync = pending();
     }
-    bool was_held = held, was_timer_held = timer_held;
     held = hold_->holding(clock_->now(), wall(now));
     timer_held = timers_->holding(clock_->now(), wall(now));
-    if (was_held && !held) held_wall_ += std::chrono::duration<double>(now - held_from).count();
-    if (!was_held && held) held_from = now;
-    if (was_timer_held && !timer_held) timer_wall_ += std::chrono::duration<double>(now - timer_from).count();
-    if (!was_timer_held && timer_held) timer_from = now;
+    reaction_spans.update(held, now);
+    timer_spans.update(timer_held, now);
     ever_held = ever_held || held || timer_held;
     if (!sync && !held && !timer_held) break;
   }

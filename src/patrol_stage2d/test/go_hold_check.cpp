@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "hold_check.h"
 #include "patrol_stage2d/go_hold.h"
 
 int main() {
@@ -16,8 +17,7 @@ int main() {
   if (!(std::cin >> team >> go_wait >> announce_wait)) return 2;
   try {
     patrol_stage2d::GoHold hold(team, go_wait, announce_wait);
-    std::string ev;
-    while (std::cin >> ev) {
+    return run_events([&hold](const std::string& ev) {
       double wall;
       int a, b, c;
       if (ev == "msg" && std::cin >> wall >> a >> b >> c) {
@@ -29,13 +29,12 @@ int main() {
       } else if (ev == "counts") {
         std::cout << hold.timeouts() << "\n";
       } else {
-        std::cerr << "bad event: " << ev << "\n";
-        return 2;
+        return false;
       }
-    }
+      return true;
+    });
   } catch (const std::invalid_argument& e) {
     std::cerr << e.what() << "\n";
     return 3;
   }
-  return 0;
 }

@@ -8,6 +8,7 @@
 #include <iostream>
 #include <string>
 
+#include "hold_check.h"
 #include "patrol_stage2d/reaction_hold.h"
 
 int main() {
@@ -15,8 +16,7 @@ int main() {
   double reaction_time, goal_wait, wait, result_wait;
   if (!(std::cin >> robots >> reaction_time >> goal_wait >> wait >> result_wait)) return 2;
   patrol_stage2d::ReactionHold hold(robots, reaction_time, goal_wait, wait, result_wait);
-  std::string ev;
-  while (std::cin >> ev) {
+  return run_events([&hold](const std::string& ev) {
     size_t i;
     std::string id;
     double sim, wall;
@@ -35,9 +35,8 @@ int main() {
       std::cout << hold.holds() << " " << hold.timeouts() << " " << hold.stop_waits() << " " << hold.stop_timeouts()
                 << "\n";
     } else {
-      std::cerr << "bad event: " << ev << "\n";
-      return 2;
+      return false;
     }
-  }
-  return 0;
+    return true;
+  });
 }

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "hold_check.h"
 #include "patrol_stage2d/timer_hold.h"
 
 int main() {
@@ -14,8 +15,7 @@ int main() {
   if (!(std::cin >> wait)) return 2;
   try {
     patrol_stage2d::TimerHold hold(wait);
-    std::string ev;
-    while (std::cin >> ev) {
+    return run_events([&hold](const std::string& ev) {
       std::string name;
       double a, b;
       if (ev == "report" && std::cin >> name >> a) {
@@ -25,13 +25,12 @@ int main() {
       } else if (ev == "counts") {
         std::cout << hold.holds() << " " << hold.timeouts() << "\n";
       } else {
-        std::cerr << "bad event: " << ev << "\n";
-        return 2;
+        return false;
       }
-    }
+      return true;
+    });
   } catch (const std::invalid_argument& e) {
     std::cerr << e.what() << "\n";
     return 3;
   }
-  return 0;
 }
