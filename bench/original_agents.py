@@ -113,6 +113,10 @@ def world_launch(alg, seed, speedup, results_dir, env, exp):
                      flags=re.S)
     if n != robots:
         raise RuntimeError(f"{m.group(1)}: expected {robots} agent nodes, found {n}")
+    # the original's agents sleep on ROS time while they start: no start hold for them
+    xml, n = re.subn(r'    <param name="start_wait" value="[^"]*"/>\n', "", xml)
+    if n != int(world[-1] == "abstract"):
+        raise RuntimeError(f"{m.group(1)}: expected the abstract world's start_wait, found {n}")
     path = m.group(1).replace("_experiment.launch", "_world_monitor.launch")
     with open(path, "w", encoding="utf-8") as f:
         f.write(xml)

@@ -20,7 +20,7 @@ repetitions) of the average and the maximum idleness, and their largest relative
 ``--table-from JSON`` prints the table of a ``--json`` file written before, running nothing.
 
 Usage:
-    bench/pace_bench.py [--algs CGG SEBS DTAG DTAP] [--seeds 1 2 3] [--speedups 1 20]
+    bench/pace_bench.py [--algs CGG SEBS DTAG DTAP] [--seeds 1 2 3] [--speedups 1 20 auto]
         [--duration 300] [--repeats 1] [--load N] [--parallel K] [--nav abstract] [--loc LOC]
         [--map grid] [--robots 4] [--keep DIR] [--markdown FILE] [--json FILE]
     bench/pace_bench.py --table-from FILE.json
@@ -41,6 +41,22 @@ sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "src"))
 
 #: runs at a pace up to this may run side by side (--parallel): they use little CPU
 SLOW_PACE = 2.0
+
+
+def pace_arg(text):
+    """A ``--speedups`` value: a number > 0, or ``auto`` (0, the runner's ``--speedup
+    auto``)."""
+    if text.strip().lower() == "auto":
+        return 0.0
+    v = float(text)
+    if not v > 0:
+        raise ValueError(text)
+    return v
+
+
+def pace_name(pace):
+    """``--speedup``'s text for a pace (0: auto)."""
+    return "auto" if pace == 0 else f"{pace:g}"
 
 
 def start_load(n):
@@ -71,7 +87,7 @@ def run_one(a, alg, seed, pace, out, rep=0):
     os.makedirs(out, exist_ok=True)
     cmd = ["/usr/bin/python3", START, "--headless", "--map", a.map, "--robots", str(a.robots),
            "--alg", alg, "--nav", a.nav, "--timeout", f"{a.duration:g}", "--speedup",
-           f"{pace:g}", "--seed", str(seed), "--processes", a.processes, "--results-dir", out]
+           pace_name(pace), "--seed", str(seed), "--processes", a.processes, "--results-dir", out]
     if a.loc:
         cmd += ["--loc", a.loc]
     cmd += a.extra
@@ -113,7 +129,7 @@ def table(rows, paces):
     """Markdown table: one line per algorithm, seed and repetition."""
     by = {(r["alg"], r["seed"], r["rep"], r["pace"]): r for r in rows}
     keys = sorted({(r["alg"], r["seed"], r["rep"]) for r in rows})
-    ps = " / ".join(f"x{p:g}" for p in paces)
+    ps = " / ".join("auto" if p == 0 else f"x{p:g}" for p in paces)
     lines = [f"| alg | seed | avg idleness s ({ps}) | max idleness s ({ps}) | diff avg | "
              f"diff max | achieved pace | holds (timed out) | interferences |", "|---" * 9 + "|"]
 
@@ -167,7 +183,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--algs", nargs="+", default=["CGG", "SEBS", "DTAG", "DTAP"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
-    ap.add_argument("--speedups", nargs="+", type=float, default=[1.0, 20.0])
+    ap.add_argument("--speedups", nargs="+", type=pace_arg, default=[1.0, 20.0],
+                    help="paces: numbers > 0, or auto (the abstract world only)")
     ap.add_argument("--duration", type=float, default=300.0)
     ap.add_argument("--repeats", type=int, default=1,
                     help="runs of each algorithm, seed and pace (the spread at one pace)")
@@ -191,7 +208,7 @@ def main():
         try:
             with open(a.table_from, encoding="utf-8") as f:
                 rows = json.load(f)
-            paces = sorted({r["pace"] for r in rows})
+            paces = sorted({r["pace"] for r in rows}, key=lambda p: (p == 0, p))  # auto last
             text = table(rows, paces)
         except (OSError, ValueError, KeyError, TypeError) as e:
             sys.exit(f"pace_bench.py: --table-from {a.table_from}: {e}")
@@ -207,15 +224,17 @@ def main():
         def one(job):
             alg, seed, pace, k = job
             r = run_one(a, alg, seed, pace,
-                        os.path.join(out, f"{alg}_s{seed}_x{pace:g}" + (f"_r{k}" if k else "")), k)
-            print(f"{alg} seed {seed} x{pace:g} run {k}: exit {r['exit']}, avg {r.get('avg')}, max "
-                  f"{r.get('max')}, achieved {r.get('achieved')}, holds {r.get('holds')} "
-                  f"({r.get('timeouts')} timed out), wall {r['wall']} s", flush=True)
+                        os.path.join(out, f"{alg}_s{seed}_x{pace_name(pace)}"
+                                     + (f"_r{k}" if k else "")), k)
+            print(f"{alg} seed {seed} x{pace_name(pace)} run {k}: exit {r['exit']}, avg "
+                  f"{r.get('avg')}, max {r.get('max')}, achieved {r.get('achieved')}, holds "
+                  f"{r.get('holds')} ({r.get('timeouts')} timed out), wall {r['wall']} s",
+                  flush=True)
             return r
-        slow = [j for j in jobs if j[2] <= SLOW_PACE]
+        slow = [j for j in jobs if 0 < j[2] <= SLOW_PACE]
         with ThreadPoolExecutor(max(1, a.parallel)) as pool:
             rows += list(pool.map(one, slow))
-        rows += [one(j) for j in jobs if j[2] > SLOW_PACE]
+        rows += [one(j) for j in jobs if j not in slow]
     finally:
         stop_load(load)
     head = (f"{a.nav}{' ' + a.loc if a.loc else ''}, {a.map}, {a.robots} robots, "

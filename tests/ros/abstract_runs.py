@@ -52,11 +52,12 @@ class AbstractRun:
 def run_abstract(alg, seed, results_dir, processes="shared", speedup=SPEEDUP,
                  duration=DURATION, extra=(), map_name=MAP, robots=ROBOTS):
     """One run of ``alg`` in the abstract world (``map_name``, ``robots`` at their default
-    start positions); returns an :class:`AbstractRun` (figures None when the run wrote no
-    info.csv)."""
+    start positions) at ``speedup`` (None: the runner's default, auto); returns an
+    :class:`AbstractRun` (figures None when the run wrote no info.csv)."""
+    pace = [] if speedup is None else ["--speedup", f"{speedup:g}"]
     cmd = ["/usr/bin/python3", START, "--headless", "--map", map_name, "--robots", str(robots),
-           "--alg", alg, "--nav", "abstract", "--timeout", f"{duration:g}", "--speedup",
-           f"{speedup:g}", "--seed", str(seed), "--processes", processes, "--results-dir",
+           "--alg", alg, "--nav", "abstract", "--timeout", f"{duration:g}", *pace,
+           "--seed", str(seed), "--processes", processes, "--results-dir",
            str(results_dir), *extra]
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                           env=ros_env(), cwd=str(results_dir), timeout=RUN_LIMIT,

@@ -1,6 +1,6 @@
 """The abstract world holds its clock for the agents' messages (docs/abstract_world.md,
-"Message hold", "GO hold"), and the run record says so: a DTAP run through the runner (its own ROS
-master), whose auctions are answered before simulated time moves on."""
+"Message hold", "GO hold", "Start hold"), and the run record says so: a DTAP run through the
+runner (its own ROS master), whose auctions are answered before simulated time moves on."""
 import glob
 import os
 import re
@@ -35,7 +35,9 @@ def test_message_hold_engages_for_dtap_and_reaches_the_run_record(tmp_path):
     assert go_hold["wall"] >= 0.45, clock
     # the agents' reports (/sim_timers): every robot's start delay and auction ends are
     # timers the clock waits for, and every robot arrives at least once in 60 s
-    assert set(reasons) == {"go", "message", "reaction", "timer", "arrival"}, clock
+    assert set(reasons) == {"go", "message", "reaction", "timer", "arrival", "start"}, clock
+    # the start hold: the clock stood still at its first step until the team was ready
+    assert reasons["start"]["holds"] == 1 and reasons["start"]["timeouts"] == 0, clock
     assert reasons["timer"]["holds"] >= 4 and reasons["arrival"]["holds"] >= 4, clock
     assert clock["holds"] == sum(x["holds"] for x in reasons.values())
     assert clock["hold_timeouts"] == sum(x["timeouts"] for x in reasons.values())
@@ -52,6 +54,8 @@ def test_message_hold_engages_for_dtap_and_reaches_the_run_record(tmp_path):
                     received = max(received or 0.0, float(m.group(1)))
     assert go is not None and received is not None
     assert received - go <= 0.02 + 1e-6, (go, received)
+    # ... and GO came at the world's first step (the start hold), as in every run
+    assert go == 0.02 or go_hold["timeouts"], (go, clock)
 
 
 def test_bids_arrive_before_the_clock_moves(tmp_path, monkeypatch):
@@ -72,3 +76,18 @@ def test_bids_arrive_before_the_clock_moves(tmp_path, monkeypatch):
     assert m, line
     bids, late = int(m.group(1)), int(m.group(2))
     assert bids >= 4 and late <= bids // 10, line
+
+
+def test_the_default_pace_is_auto_with_the_figures_of_a_paced_run(tmp_path):
+    """Unpaced (the runner's default in the abstract world) and x5 give the same figures:
+    the start hold puts GO at the same sim time, the other holds keep the agents in step."""
+    for d in ("auto", "x5"):
+        (tmp_path / d).mkdir()
+    auto = run_abstract("SEBS", 2, tmp_path / "auto", speedup=None, duration=DURATION)
+    paced = run_abstract("SEBS", 2, tmp_path / "x5", speedup=5.0, duration=DURATION)
+    for r in (auto, paced):
+        assert r.exit_code == 0 and r.complete(DURATION), r.output[-2000:]
+    with open(auto.prefix + "_run.yaml", encoding="utf-8") as f:
+        clock = yaml.safe_load(f)["clock"]
+    assert clock["pace_requested"] == "auto" and clock["pace_achieved"] > 0, clock
+    assert auto.figures() == paced.figures()

@@ -102,7 +102,7 @@ def test_runner_launch_in_the_abstract_world(tmp_path):
     worlds = [n for n in root.iter("node") if n.get("type") == "abstract_world.py"]
     assert len(worlds) == 1 and worlds[0].get("required") == "true"
     params = {p.get("name"): p.get("value") for p in worlds[0].iter("param")}
-    assert params == {"team_size": "4", "speedup": "30.0"}
+    assert params == {"team_size": "4", "speedup": "30.0", "start_wait": "120.0"}
     # no simulator, map server, localisation or move_base
     assert not list(root.iter("include"))
     assert {n.get("type") for n in root.iter("node")} == {"abstract_world.py", "monitor",

@@ -11,7 +11,7 @@ from patrolling_sim.runner.outcome import clock_record
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "patrolling_sim", "tools"))
-from clock_hold import (GoHold, HoldCounter, MessageHold, TimerReports,  # noqa
+from clock_hold import (GoHold, HoldCounter, MessageHold, StartHold, TimerReports,  # noqa
                         awaited_answer, reaction_deadline, totals)
 
 
@@ -194,6 +194,42 @@ def test_go_hold_off_and_bad_wait():
     assert h.note(0.1, [-1, 10, 100]) and h.until(0.1) is None
     with pytest.raises(ValueError, match="go_wait"):
         GoHold(team=1, go_wait=-1.0)
+
+
+def test_start_hold_from_the_first_step_until_the_team_is_ready():
+    h = StartHold(team=2, wait=10.0)
+    h.note([0, 10, 1])                                  # before the first step: noted
+    assert not h.holding(0.5)                           # not begun: the clock may step
+    h.begin(1.0)
+    assert h.holding(1.5) and h.counter.holds == 1
+    h.note([5, 10, 1])                                  # not of the team
+    h.note([0, 12])                                     # not an announcement
+    assert h.holding(2.0)
+    h.note([1, 10, 1])                                  # the team is ready
+    assert not h.holding(2.1) and h.counter.timeouts == 0
+    h.begin(3.0)                                        # ended holds do not begin again
+    assert not h.holding(3.1) and h.counter.holds == 1
+
+
+def test_start_hold_ends_at_go_or_times_out():
+    h = StartHold(team=3, wait=10.0)
+    h.begin(0.0)
+    h.note([-1, 10, 100])                               # GO (the world missed an announcement)
+    assert not h.holding(0.1) and h.counter.timeouts == 0
+    h = StartHold(team=1, wait=10.0)
+    h.begin(0.0)
+    assert h.holding(9.9)
+    assert not h.holding(10.0) and h.counter.timeouts == 1
+    h.note([0, 10, 1])
+    assert not h.holding(10.1) and h.counter.timeouts == 1
+
+
+def test_start_hold_off_and_bad_wait():
+    h = StartHold(team=1, wait=0.0)
+    h.begin(0.0)
+    assert not h.holding(0.0) and h.counter.holds == 0
+    with pytest.raises(ValueError, match="start_wait"):
+        StartHold(team=1, wait=-1.0)
 
 
 def test_timer_reports_hold_where_a_timer_is_due_until_it_fired():

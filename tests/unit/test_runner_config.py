@@ -163,7 +163,11 @@ def _cli(*args, **kw):
     (("--map", "grid", "--robots", "2", "--alg", "XX"), "unknown algorithm 'XX'"),
     (("--map", "grid", "--robots", "two", "--alg", "CR"), "invalid int value: 'two'"),
     (("--map", "grid", "--robots", "2", "--alg", "CR", "--speedup", "fast"),
-     "invalid float value: 'fast'"),
+     "argument --speedup: must be a number > 0 or auto, got 'fast'"),
+    (("--map", "grid", "--robots", "2", "--alg", "CR", "--speedup", "0"),
+     "argument --speedup: must be a number > 0 or auto, got '0'"),
+    (("--map", "grid", "--robots", "2", "--alg", "CR", "--speedup", "auto"),
+     "argument --speedup: auto needs --nav abstract"),
     (("grid", "4", "default", "CR", "AMCL", "ros", "x", "0", "xterm", "60"),
      "argument GWAIT: expected float"),
     (("--config", "/nonexistent/c.yaml"), "configuration file not found"),
@@ -188,6 +192,21 @@ def test_cli_dry_run_writes_launch_and_config(tmp_path):
     cfg = load_config_file(launch.replace("_experiment.launch", "_config.yaml"))
     assert (cfg.map, cfg.robots, cfg.alg, cfg.timeout) == ("grid", 3, "CR", 60.0)
     assert os.path.dirname(launch).endswith(os.path.join("grid_3", "CR", os.uname().nodename))
+
+
+def test_speedup_auto_in_the_abstract_world(tmp_path):
+    cfg = ExperimentConfig().updated({"map": "grid", "robots": 2, "alg": "CR",
+                                      "nav": "abstract", "speedup": "Auto",
+                                      "results_dir": str(tmp_path)}).validate()
+    assert cfg.speedup == 0.0                       # the abstract world's "not paced"
+    assert "speedup: auto" in cfg.to_yaml()
+    path = tmp_path / "c.yaml"
+    path.write_text(cfg.to_yaml())
+    assert load_config_file(str(path)).speedup == 0.0       # read back
+    # the default: auto in the abstract world, real time on the full stack
+    base = {"map": "grid", "robots": 2, "alg": "CR", "results_dir": str(tmp_path)}
+    assert ExperimentConfig().updated(dict(base, nav="abstract")).validate().speedup == 0.0
+    assert ExperimentConfig().updated(base).validate().speedup == 1.0
 
 
 def test_patrol_agents_robot_ids():

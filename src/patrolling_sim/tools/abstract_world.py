@@ -6,9 +6,10 @@ It is the world the original's reference runs were made in, so that our agents a
 can be compared with the original's on equal terms, and a cheap world for ROS-level tests:
 
 - ``/clock`` in fixed steps of ``~step`` sim seconds (0.02), paced at ``~speedup`` x real
-  time after the monitor's GO and ``~speedup_before_go`` x before it; when the machine
-  cannot keep up, sim time slows down uniformly (steps are never skipped or merged), so
-  sim-time results do not depend on the machine's load;
+  time after the monitor's GO (0: not paced, each step as soon as the clock holds allow) and
+  ``~speedup_before_go`` x before it; when the machine cannot keep up, sim time slows down
+  uniformly (steps are never skipped or merged), so sim-time results do not depend on the
+  machine's load;
 - per robot ``robot_i/move_base`` (move_base_msgs/MoveBase action): on a goal the robot
   moves in a straight line from its CURRENT position to the goal at ``~speed`` m/s, no
   acceleration, no turning, no obstacles, robots pass through each other; the goal
@@ -33,20 +34,24 @@ Start positions from ``/initial_pos`` (flat x0,y0,x1,y1,...), the team size ``~t
 (default: all). At shutdown the node logs goals per robot, the clock holds and the sim time
 between a SUCCEEDED and the robot's next goal (the agents' turnaround).
 
-Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20),
-~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
+Private parameters: ~team_size (int), ~speed (1.0 m/s), ~step (0.02 s), ~speedup (20; 0:
+not paced), ~speedup_before_go (2, at most ~speedup), ~odom_period (0.1 s), ~feedback (false),
 ~publish_tf (true), ~reaction_time (0.08 s), ~reaction_wait (0.2 wall s; 0 = never hold),
 ~message_quiet (0.005 wall s), ~answer_quiet (0.02 wall s), ~message_wait (0.1 wall s; 0 off),
 ~auction_timers (true: hold where a DTA auction may end), ~timer_wait (0.5 wall s the clock
 waits at most at a step where an agent process reported a timer due; 0 off), ~arrival_wait
 (1.0 wall s the clock waits at most for an agent's report that it handled an arrival; 0
 off), ~go_wait (0.5 wall s the clock stands still after GO, and from the last robot's ready
-announcement until GO; 0 off).
+announcement until GO; 0 off), ~start_wait (wall s the clock stands still at its first step
+until every robot has announced itself ready, so that GO comes at the same sim time in every
+run; 0, the default, off: agents that sleep on ROS time while they start, as the original's,
+need it off; the runner sets 120 for its own agents).
 
 Diagnostic: with ``PATROLLING_SIM_TRACE_AUCTIONS=1`` in its environment the node logs at
 shutdown the sim and wall s from each DTA task request (type 41) to each bid (type 42).
 """
 import json
+import math
 import os
 import statistics
 import sys
@@ -76,8 +81,9 @@ class WorldNode(WorldHolds):
         self.world = StraightLineWorld(positions, float(rospy.get_param("~speed", 1.0)),
                                        float(rospy.get_param("~step", 0.02)))
         self.speedup = float(rospy.get_param("~speedup", 20.0))
-        if not self.speedup > 0:
-            raise ValueError(f"~speedup must be > 0, got {self.speedup}")
+        if not self.speedup >= 0:
+            raise ValueError(f"~speedup must be >= 0, got {self.speedup}")
+        self.speedup = self.speedup or math.inf     # 0: each step as soon as the holds allow
         self.speedup_before_go = min(float(rospy.get_param("~speedup_before_go", 2.0)),
                                      self.speedup)
         if not self.speedup_before_go > 0:
@@ -142,6 +148,7 @@ class WorldNode(WorldHolds):
         if len(d) >= 2:                             # any message: the agents react to GO too
             with self.lock:
                 self.message_hold.note(now, d)
+                self.start_hold.note(d)
                 if self.timers is not None:
                     self.timers.note(d, self.world.time)
                 if self.go_hold.note(now, d):
@@ -176,7 +183,8 @@ class WorldNode(WorldHolds):
         last_status = 0.0
         rtf = 0.0
         while not rospy.is_shutdown():
-            held = self._hold_for_go()
+            held = self.world.steps > 0 and self._hold_at_start(self._republish)
+            held = self._hold_for_go() or held
             held = self.hold_limit > 0 and self._hold_for_reactions() or held
             if self._hold_for_messages() or held:
                 next_wall = time.monotonic()       # the clock stood still: no catch-up
@@ -225,6 +233,12 @@ class WorldNode(WorldHolds):
                 last_status = now
                 self.status_pub.publish(json.dumps(self.status(rtf)))
 
+    def _republish(self):
+        """The clock and the action servers' status again, the clock standing still."""
+        self.clock_pub.publish(self.clock)
+        for r in self.robots:
+            r.server.publish_status()
+
     def _publish_odometry(self, stamp):
         from move_base_msgs.msg import MoveBaseFeedback
         with self.lock:
@@ -266,6 +280,11 @@ class WorldNode(WorldHolds):
                 f"{self.message_hold.counter.timeouts} timed out after "
                 f"{self.message_hold.limit:g} wall s, {self.message_hold.counter.wall:.2f} wall "
                 f"s in all; for GO {self.go_hold.counter.wall:.2f} wall s")
+        if self.start_hold.wait > 0:
+            c = self.start_hold.counter
+            line += (f"; at the start {c.wall:.2f} wall s"
+                     + (f", timed out after {self.start_hold.wait:g} wall s" if c.timeouts
+                        else ""))
         if self.timer_reports is not None:
             c = self.timer_reports.counter
             line += (f"; for the agents' timers {c.holds} times, {c.timeouts} timed out after "

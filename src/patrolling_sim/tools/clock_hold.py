@@ -269,6 +269,53 @@ class GoHold:
         return None
 
 
+class StartHold:
+    """The start hold (docs/abstract_world.md, "Start hold"): the clock stands still at its
+    first step until every one of the ``team`` robots has announced itself ready
+    (``[id, 10, 1]``) or the monitor's GO (``[-1, 10, 100]``) is seen, at most ``wait`` wall
+    s from :meth:`begin` (then it counts as timed out and the clock runs on). GO then comes
+    at the same sim time in every run, however long the processes took to start. ``wait`` 0
+    turns it off: agents that sleep on ROS time while they start (the original's) need it
+    off. ``note`` takes every /results message; ``holding`` says whether the clock must
+    still stand still."""
+
+    def __init__(self, team, wait):
+        if wait < 0:
+            raise ValueError(f"~start_wait must be >= 0, got {wait}")
+        self.team, self.wait = team, wait
+        self.counter = HoldCounter()
+        self.ready = set()
+        self.end = None             # wall time the hold ends at the latest (None: not begun)
+        self.over = wait == 0       # the hold has ended (or is off)
+
+    def begin(self, now):
+        """The clock has made its first step at wall time ``now``: the hold starts."""
+        if not self.over and self.end is None:
+            self.end = now + self.wait
+            self.counter.holds += 1
+
+    def note(self, data):
+        """A /results message ``data``; ends the hold at the last ready or at GO."""
+        if self.over or len(data) < 3 or data[1] != MSG_INIT:
+            return
+        if data[0] == MONITOR_ID and data[2] == GO:
+            self.over = True
+        elif data[2] == ROBOT_READY and 0 <= data[0] < self.team:
+            self.ready.add(data[0])
+            self.over = len(self.ready) == self.team
+
+    def holding(self, now):
+        """True while the clock must stand still at wall time ``now`` (the hold has begun
+        and not ended); a hold that reaches its bound ends as timed out."""
+        if self.over or self.end is None:
+            return False
+        if now >= self.end:
+            self.over = True
+            self.counter.timeouts += 1
+            return False
+        return True
+
+
 class TimerReports:
     """The agents' reports (``/sim_timers`` per agent process;
     patrolling_sim.ros.sim_timers): ``[done, next]``, its timers due up to sim time ``done``

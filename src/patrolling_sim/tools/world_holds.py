@@ -5,8 +5,8 @@ parameters and the waits, which need the node's lock, condition, robots and worl
 import time
 
 from straight_line_world import EPS
-from clock_hold import (AuctionTimers, GoHold, HoldCounter, MessageHold, TimerReports,
-                        reaction_deadline)
+from clock_hold import (AuctionTimers, GoHold, HoldCounter, MessageHold, StartHold,
+                        TimerReports, reaction_deadline)
 from patrolling_sim.ros.sim_timers import READER_PARAM, REPORT_TOPIC
 
 #: sim s from an arrival (plus /goal_reached_wait) to the next departure at the earliest, and
@@ -29,6 +29,9 @@ GO_WAIT = 0.5
 TIMER_WAIT = 0.5
 #: wall s the clock waits at most for an agent's report that it handled its robot's arrival
 ARRIVAL_WAIT = 1.0
+#: wall s between two publications of the clock and the action servers' status while the
+#: start hold lasts (a node that starts meanwhile reads both within this time)
+START_REPUBLISH = 0.1
 
 
 class WorldHolds:
@@ -53,6 +56,8 @@ class WorldHolds:
         # timer fires there and it acts (a new round, a goal)
         self.timers = AuctionTimers() if rospy.get_param("~auction_timers", True) else None
         self.go_hold = GoHold(team, float(rospy.get_param("~go_wait", GO_WAIT)))
+        # off unless asked: the original's agents sleep on ROS time while they start
+        self.start_hold = StartHold(team, float(rospy.get_param("~start_wait", 0.0)))
         # hold the clock at a step where an agent process has a timer due until it reports
         # that the timer fired (patrolling_sim.ros.sim_timers; the original's agents do not
         # report, and the auction-timer rule above stands in for theirs)
@@ -88,6 +93,26 @@ class WorldHolds:
             self.timer_reports.note(sender, msg.data[0], msg.data[1], robot, self.world.time)
             self.message_hold.note(time.monotonic())
             self.traffic.notify_all()
+
+    def _hold_at_start(self, republish):
+        """Stop the clock while the start hold lasts (clock_hold.StartHold), calling
+        ``republish()`` (the clock and the action servers' status, which the agents need to
+        find their move_base) every START_REPUBLISH wall s; True if it held."""
+        hold = self.start_hold
+        if hold.over:
+            return False
+        start = last = time.monotonic()
+        hold.begin(start)
+        while not self.rospy.is_shutdown():
+            with self.lock:
+                if not hold.holding(time.monotonic()):
+                    break
+                self.traffic.wait(max(0.0, last + START_REPUBLISH - time.monotonic()))
+            if time.monotonic() - last >= START_REPUBLISH:
+                last = time.monotonic()
+                republish()
+        hold.counter.wall += time.monotonic() - start
+        return True
 
     def _hold_for_go(self):
         """Stop the clock while the GO hold lasts (clock_hold.GoHold); True if it held."""
@@ -225,6 +250,8 @@ class WorldHolds:
     def _hold_counters(self):
         c = {"go": self.go_hold.counter, "reaction": self.reaction,
              "message": self.message_hold.counter}
+        if self.start_hold.wait > 0:
+            c["start"] = self.start_hold.counter
         if self.timer_reports is not None:
             c["timer"] = self.timer_reports.counter
             c["arrival"] = self.arrival

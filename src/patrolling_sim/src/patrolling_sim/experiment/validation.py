@@ -3,6 +3,7 @@ same one-line errors (:class:`PatrolInputError`) for the same bad input, before 
 starts.
 """
 import logging
+import math
 import os
 import subprocess
 
@@ -40,6 +41,44 @@ MEMORY_MB = {
 
 
 PROCESS_MODES = ("shared", "separate", "pooled", "pooled-separate")
+
+
+#: ``speedup`` of ``--speedup auto``: the abstract world steps as soon as its clock holds
+#: allow (its ``~speedup`` 0), the pace the machine holds
+AUTO_PACE = 0.0
+
+
+def pace_value(value, where):
+    """``speedup`` given as ``value``: a number > 0, or ``auto`` (:data:`AUTO_PACE`).
+
+    Raises:
+        PatrolInputError: one line naming ``where``.
+    """
+    if isinstance(value, str) and value.strip().lower() == "auto":
+        return AUTO_PACE
+    try:
+        f = None if isinstance(value, bool) else float(value)
+    except (TypeError, ValueError):
+        f = None
+    if f is None or not 0 < f < math.inf:
+        raise PatrolInputError(f"{where}: must be a number > 0 or auto, got {value!r}")
+    return f
+
+
+def resolve_pace(speedup, nav):
+    """The pace of a run in world ``nav``: ``speedup`` None (not given) is auto in the
+    abstract world (its figures do not depend on the pace, docs/pace.md) and 1 elsewhere.
+
+    Raises:
+        PatrolInputError: one line, for auto outside the abstract world.
+    """
+    if speedup is None:
+        return AUTO_PACE if nav == "abstract" else 1.0
+    if speedup == AUTO_PACE and nav != "abstract":
+        raise PatrolInputError(
+            f"argument --speedup: auto needs --nav abstract (with --nav {nav} the figures "
+            f"depend on the pace, docs/pace.md: give a number, e.g. 4)")
+    return speedup
 
 
 def process_layout(processes, robots):

@@ -67,8 +67,9 @@ def build_parser():
                     "shipped policies/slots_bc.npz; docs/learning.md)")
     ap.add_argument("--timeout", type=float, help="sim seconds after GO (0 = none)")
     ap.add_argument("--cycles", type=int, help="stop after k complete patrol cycles")
-    ap.add_argument("--speedup", type=float,
-                    help="simulator pace > 0 (1 = real time; an upper bound, see the README)")
+    ap.add_argument("--speedup",
+                    help="simulator pace > 0 (1 = real time; an upper bound, see the README), "
+                    "or auto with --nav abstract (as fast as the agents allow)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--processes", help="shared (default: agents in one process, each robot's "
                     "localisation + navigation in one) | separate (one process per node) | "

@@ -31,8 +31,10 @@ Keys (YAML file = same names as the long flags, with ``-`` or ``_``)::
                  see docs/scenarios.md
     timeout      sim seconds after GO; 0 = no timeout                (0)
     cycles       stop after k complete patrol cycles; 0 = no limit   (0)
-    speedup      simulator pace (> 0): 1 = real time, 4 = four times faster   (1); an upper
-                 bound: the simulator waits for late navigation commands
+    speedup      simulator pace (> 0): 1 = real time, 4 = four times faster; an upper
+                 bound: the simulator waits for late navigation commands. "auto" (with
+                 nav abstract only): no pace, each step as soon as the agents allow (stored
+                 as 0; docs/pace.md)              (1; auto with nav abstract)
     seed         random seed of agents, simulator noise and "random" starts   (0)
     results_dir  results root                                        (<workspace>/results)
     rviz         open rviz (the package's launch/patrol.rviz)        (false)
@@ -63,6 +65,7 @@ import logging
 import math
 import os
 from dataclasses import dataclass, field
+from typing import Optional
 
 import yaml
 
@@ -106,7 +109,7 @@ class ExperimentConfig:
     attrition: str = "none"
     timeout: float = 0.0
     cycles: int = 0
-    speedup: float = 1.0
+    speedup: Optional[float] = None     # None: 1, or auto with nav abstract (validate)
     seed: int = 0
     results_dir: str = field(default_factory=default_results_dir)
     rviz: bool = False
@@ -127,7 +130,7 @@ class ExperimentConfig:
         each robot) a ``start_vertices`` list follows ``initpos``."""
         d = {}
         for key, value in self.to_dict().items():
-            d[key] = value
+            d[key] = "auto" if key == "speedup" and value == validation.AUTO_PACE else value
             if key == "initpos" and start_vertices is not None:
                 d["start_vertices"] = [int(v) for v in start_vertices]
         return yaml.safe_dump(d, sort_keys=False)
@@ -151,6 +154,11 @@ class ExperimentConfig:
                 raise PatrolInputError(f"{source}: unknown key '{raw_key}' (known: "
                                        f"{', '.join(types)})")
             if value is None:
+                continue
+            if key == "speedup":
+                where = ("argument --speedup" if source == "command line"
+                         else f"{source}: key '{raw_key}'")
+                setattr(out, key, validation.pace_value(value, where))
                 continue
             setattr(out, key, _convert(value, types[key], f"{source}: key '{raw_key}'"))
         return out
@@ -210,10 +218,7 @@ class ExperimentConfig:
             if getattr(self, name) < 0:
                 raise PatrolInputError(f"argument --{name.replace('_', '-')}: must be >= 0, "
                                        f"got {getattr(self, name)}")
-        if not self.speedup > 0:
-            raise PatrolInputError(
-                f"argument --speedup: must be > 0, got {self.speedup:g} (an experiment needs a "
-                f"pace the agents and the navigation can follow, e.g. 4; see the README)")
+        self.speedup = validation.resolve_pace(self.speedup, self.nav)
         if not 0 <= self.loss < 1:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
         failures = self.scenario()[1]       # one-line errors for --comm / --attrition
@@ -373,6 +378,9 @@ def from_positional(args):
     cfg = ExperimentConfig()
     for name, value in values.items():
         where = f"argument {name.upper()}"
+        if name == "speedup":
+            cfg.speedup = validation.pace_value(value, where)
+            continue
         typ = {f.name: f.type for f in dataclasses.fields(cfg)}[name]
         setattr(cfg, name, _convert(value, typ, where))
     return cfg

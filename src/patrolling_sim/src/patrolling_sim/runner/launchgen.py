@@ -35,13 +35,18 @@ from spqrel_nav_lite import plan_store
 from patrolling_sim.common import paths
 from patrolling_sim.agent.factory import agent_seed
 from patrolling_sim.model.graph import load_graph
-from patrolling_sim.experiment.validation import process_layout
+from patrolling_sim.experiment.validation import process_layout, resolve_pace
 
 
 #: ``nav`` value of the abstract world: no simulator, map server, localisation or move_base;
 #: one ``abstract_world`` node (src/patrolling_sim/tools/abstract_world.py) moves every robot
 #: in straight lines at 1 m/s and publishes /clock (docs/abstract_world.md)
 ABSTRACT_NAV = "abstract"
+#: wall s the abstract world's clock stands still at its first step until every agent has
+#: announced itself ready (its ``~start_wait``, docs/abstract_world.md, "Start hold"): GO
+#: then comes at the same sim time in every run. Generous, for large teams on a busy machine;
+#: a hold that reaches it only lets the clock run as it would without the hold.
+START_WAIT = 120.0
 
 
 def status_topic(cfg):
@@ -54,7 +59,8 @@ def _abstract_world(a, cfg, n):
     a('  <node pkg="patrolling_sim" type="abstract_world.py" name="abstract_world" '
       'required="true" output="log">')
     a(f'    <param name="team_size" value="{n}"/>')
-    a(f'    <param name="speedup" value="{_num(cfg.speedup)}"/>')
+    a(f'    <param name="speedup" value="{_num(resolve_pace(cfg.speedup, cfg.nav))}"/>')
+    a(f'    <param name="start_wait" value="{_num(START_WAIT)}"/>')
     if cfg.scenario()[0].name == "range":
         # the range model judges links from the robots' poses on /positions, which the
         # agents publish from move_base feedback
@@ -193,7 +199,7 @@ def _simulator(a, cfg, yaml_path, graph_path, poses, snapshot_dir):
     a('  <include file="$(find patrol_stage2d)/launch/stage2d.launch">')
     a(f"    <arg name=\"map\" value={_attr(yaml_path)}/>")
     a(f"    <arg name=\"poses\" value={_attr(poses)}/>")
-    a(f"    <arg name=\"speedup\" value=\"{_num(cfg.speedup)}\"/>")
+    a(f"    <arg name=\"speedup\" value=\"{_num(resolve_pace(cfg.speedup, cfg.nav))}\"/>")
     a(f"    <arg name=\"gui\" value=\"{str(cfg.gui_sim).lower()}\"/>")
     graph_xy, graph_edges = graph_drawing(graph_path)
     a(f"    <arg name=\"graph_vertices\" value={_attr(graph_xy)}/>")

@@ -124,8 +124,8 @@ class Experiment:
 
     def wall_limit(self):
         cfg = self.cfg
-        if cfg.timeout > 0 and cfg.speedup > 0:
-            return cfg.timeout / cfg.speedup * 4 + 300
+        if cfg.timeout > 0:     # --speedup auto: at least real time
+            return cfg.timeout / (cfg.speedup or 1.0) * 4 + 300
         return None
 
     def prepare(self):
@@ -371,7 +371,7 @@ class Experiment:
             missing_files=missing,
             requested={"timeout": cfg.timeout, "cycles": cfg.cycles,
                        "dead_robot_timeout": cfg.dead_robot_timeout},
-            clock=clock_record(last_status, cfg.speedup, pace), written_by="runner")
+            clock=clock_record(last_status, cfg.speedup or "auto", pace), written_by="runner")
         try:
             rs.write_run_yaml(self.prefix, record)
         except OSError as e:
