@@ -161,12 +161,14 @@ def mean_figures(runs):
 
 def graph_config(map_name, robots, alg, seed, duration, go_time=None):
     """Graph mode in the abstract world's conditions: the shipped default start positions,
-    straight-line travel at 1 m/s, no interference, goal wait 0, no delay or loss, the
-    agents' clock at GO :data:`GO_TIME` (or ``go_time``)."""
+    straight-line travel at 1 m/s, no interference, no teammate positions heard (the world
+    sends no move_base feedback), goal wait 0, no delay or loss, the agents' clock at GO
+    :data:`GO_TIME` (or ``go_time``)."""
     from patrolling_sim.graphsim.config import GraphSimConfig
     kw = dict(map=map_name, robots=robots, alg=alg, seed=seed, duration=duration, speed=1.0,
               gwait=0.0, comm_delay=0.0, loss=0.0, initpos="default", travel="euclidean",
-              interference=False, go_time=GO_TIME if go_time is None else go_time)
+              interference=False, positions=False,
+              go_time=GO_TIME if go_time is None else go_time)
     fields = {f.name for f in dataclasses.fields(GraphSimConfig)}
     return GraphSimConfig(**{k: v for k, v in kw.items() if k in fields})
 

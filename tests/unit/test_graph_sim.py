@@ -102,6 +102,21 @@ def test_go_time_is_how_long_the_agents_clock_ran_before_go(tmp_path):
     assert figures[0.0] == figures[7.0]      # CR's argmax does not move with the offset
 
 
+def test_without_positions_cbls_heeds_only_lower_ids(tmp_path):
+    """``positions`` off, as in the abstract world (no move_base feedback): no agent hears a
+    teammate's position, so CBLS's local team size stays its own id + 1 (robot 0 heeds no
+    intention, robot 3 those of robots 0-2); with positions heard it is the whole team."""
+    sizes = {}
+    for heard in (True, False):
+        sim = GraphSimulator(GraphSimConfig(results_dir=str(tmp_path), map="grid", robots=4,
+                                            alg="CBLS", duration=60.0, interference=False,
+                                            positions=heard))
+        sim.run(write=False)
+        assert all(bool(r.core.team_pos) == heard for r in sim.robots)
+        sizes[heard] = [r.core.strategy.team_size_heard() for r in sim.robots]
+    assert sizes == {True: [4, 4, 4, 4], False: [1, 2, 3, 4]}
+
+
 @pytest.mark.parametrize("kw,needle", [
     (dict(alg="NOPE"), "argument --alg: unknown algorithm 'NOPE'"),
     (dict(robots=0), "argument --robots"),
@@ -110,6 +125,7 @@ def test_go_time_is_how_long_the_agents_clock_ran_before_go(tmp_path):
     (dict(go_time=-1.0), "argument --go-time"),
     (dict(go_time=float("inf")), "argument --go-time"),
     (dict(map="atlantis"), "atlantis"),
+    (dict(positions=False), "argument --positions: off needs --interference off"),
 ])
 def test_bad_config(kw, needle, tmp_path):
     with pytest.raises(PatrolInputError) as e:

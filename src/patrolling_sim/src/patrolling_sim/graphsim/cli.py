@@ -53,6 +53,10 @@ def build_parser():
                     help="probability that a navigation goal fails on the way [0, 1)")
     ap.add_argument("--interference", choices=("on", "off"), default="on",
                     help="robots closer than 2 m interfere (default on)")
+    ap.add_argument("--positions", choices=("on", "off"), default="on",
+                    help="the agents hear their teammates' positions (default on); off as in "
+                         "the abstract world, which sends no move_base feedback (needs "
+                         "--interference off)")
     ap.add_argument("--travel", choices=TRAVEL_MODES, default="graph",
                     help="graph: along shortest graph paths; euclidean: straight line "
                          "to the goal vertex (default graph)")
@@ -81,7 +85,9 @@ def check_first_run(a):
                            cycles=a.cycles, seed=a.seed, speed=a.speed, gwait=a.gwait,
                            go_time=a.go_time, comm_delay=a.comm_delay, loss=a.loss,
                            initpos=a.initpos, results_dir=a.results_dir, comm=a.comm,
-                           attrition=a.attrition, policy=a.policy).validate()
+                           attrition=a.attrition, policy=a.policy,
+                           interference=a.interference == "on",
+                           positions=a.positions == "on").validate()
     _, pgraph = validation.check_start_positions(first.map, first.robots, first.initpos,
                                                  alg=first.alg, seed=first.seed)
     warning = validation.team_size_warning(first.robots, pgraph.n, paths.map_name(a.map))
@@ -96,7 +102,8 @@ def run_config(a, seed):
                           cycles=a.cycles, seed=seed, speed=a.speed, gwait=a.gwait,
                           go_time=a.go_time, comm_delay=a.comm_delay, loss=a.loss,
                           initpos=a.initpos, results_dir=a.results_dir, goal_fail=a.goal_fail,
-                          interference=a.interference == "on", travel=a.travel,
+                          interference=a.interference == "on",
+                          positions=a.positions == "on", travel=a.travel,
                           comm=a.comm, attrition=a.attrition, policy=a.policy)
 
 

@@ -53,6 +53,10 @@ class GraphSimConfig:
     params: dict = field(default_factory=dict)
     goal_fail: float = 0.0          # probability that a navigation goal fails on the way
     interference: bool = True       # robots within 2 m interfere (the original's rule)
+    positions: bool = True          # the agents hear their teammates' positions (/positions,
+    #                                 from move_base feedback); False as in the abstract
+    #                                 world, which sends no feedback: no interference, and
+    #                                 CBLS's local team size stays its own id + 1
     travel: str = "graph"           # "graph": shortest graph path; "euclidean": straight line
     comm: str = "perfect"           # communication model (patrolling_sim.scenarios.comm, --comm)
     attrition: str = "none"         # robot failures (patrolling_sim.scenarios.attrition,
@@ -87,6 +91,9 @@ class GraphSimConfig:
             raise PatrolInputError(f"argument --loss: must be in [0, 1), got {self.loss}")
         if not 0 <= self.goal_fail < 1:
             raise PatrolInputError(f"argument --goal-fail: must be in [0, 1), got {self.goal_fail}")
+        if not self.positions and self.interference:
+            raise PatrolInputError("argument --positions: off needs --interference off (the "
+                                   "agents detect interference from their teammates' positions)")
         if self.travel not in TRAVEL_MODES:
             raise PatrolInputError(f"argument --travel: must be one of {', '.join(TRAVEL_MODES)}"
                                    f", got '{self.travel}'")

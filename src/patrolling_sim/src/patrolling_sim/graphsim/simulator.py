@@ -129,7 +129,9 @@ class GraphSimulator(FeedbackTicks):
 
     def _share_position(self, rid, xy):
         """Robot ``rid`` published ``xy`` on /positions: each teammate's core receives it
-        through its communication model."""
+        through its communication model (nothing with ``positions`` off)."""
+        if not self.cfg.positions:
+            return
         for r in self.robots:
             if r.id != rid and r.core is not None:
                 r.core.on_position(rid, xy[0], xy[1])
@@ -190,7 +192,7 @@ class GraphSimulator(FeedbackTicks):
     def stood(self, robot):
         """``robot`` stopped at ``robot.xy``: that is its last published position."""
         self.team_pos[robot.id] = robot.xy
-        if not self.perfect_comm:
+        if not self.perfect_comm and self.cfg.positions:
             self._share_position(robot.id, robot.xy)
 
     # -- monitor ----------------------------------------------------------------------------
@@ -220,7 +222,7 @@ class GraphSimulator(FeedbackTicks):
                                  silence_check=bool(self.schedule_failures),
                                  strategy_class=self.strategy_class)
         robot.core.strategy.clock_zero = -cfg.go_time    # GO is t = 0 here
-        if self.perfect_comm:
+        if self.perfect_comm and cfg.positions:     # else only what on_position brings
             robot.core.team_pos = self.team_pos
 
     def _fail(self, rid):
