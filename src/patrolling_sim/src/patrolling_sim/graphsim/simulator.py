@@ -192,7 +192,7 @@ class GraphSimulator(FeedbackTicks):
     def stood(self, robot):
         """``robot`` stopped at ``robot.xy``: that is its last published position."""
         self.team_pos[robot.id] = robot.xy
-        if not self.perfect_comm and self.cfg.positions:
+        if not self.perfect_comm:
             self._share_position(robot.id, robot.xy)
 
     # -- monitor ----------------------------------------------------------------------------
